@@ -1,0 +1,193 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file concepts.hpp
+/// @brief The concepts every kintsugi algorithm is written against, and the
+/// uniform accessors built on the traits (see traits.hpp).
+
+#include <kintsugi/core/traits.hpp>
+#include <kintsugi/core/types.hpp>
+
+#include <concepts>
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+namespace kintsugi {
+
+// ---------------------------------------------------------------- point sets
+
+/// A finite sequence of 3D points, read through point_set_traits<T>.
+template <class T>
+concept PointSet = requires(const T& t, std::size_t i) {
+    { point_set_traits<T>::size(t) } -> std::convertible_to<std::size_t>;
+    { point_set_traits<T>::point(t, i) } -> std::convertible_to<Vec3>;
+};
+
+/// A PointSet whose points carry normals. Whether the normals are present at
+/// run time is asked with has_normals() (e.g. a CGAL::Point_set_3 without a
+/// normal map models the concept but has none).
+template <class T>
+concept OrientedPointSet = PointSet<T> && requires(const T& t, std::size_t i) {
+    { point_set_traits<T>::normal(t, i) } -> std::convertible_to<Vec3>;
+};
+
+/// A PointSet into which normals can be written (normal estimation's output).
+template <class T>
+concept NormalWritablePointSet = PointSet<T> && requires(T& t, std::size_t i, const Vec3& n) {
+    point_set_traits<T>::set_normal(t, i, n);
+};
+
+/// A point set that can be cleared and appended to (an output of point-based methods).
+template <class T>
+concept GrowablePointSet = PointSet<T> && requires(T& t, const Vec3& p) {
+    point_set_traits<T>::clear(t);
+    point_set_traits<T>::push_back(t, p, p);
+};
+
+/// Number of points.
+template <PointSet T>
+[[nodiscard]] std::size_t num_points(const T& t) {
+    return static_cast<std::size_t>(point_set_traits<T>::size(t));
+}
+
+/// Position of point i.
+template <PointSet T>
+[[nodiscard]] Vec3 point_at(const T& t, std::size_t i) {
+    return point_set_traits<T>::point(t, i);
+}
+
+/// Normal of point i. @pre has_normals(t)
+template <OrientedPointSet T>
+[[nodiscard]] Vec3 normal_at(const T& t, std::size_t i) {
+    return point_set_traits<T>::normal(t, i);
+}
+
+/// Whether t stores a normal for every point (false for any non-oriented type).
+template <PointSet T>
+[[nodiscard]] bool has_normals(const T& t) {
+    if constexpr (!OrientedPointSet<T>) {
+        return false;
+    } else if constexpr (requires { point_set_traits<T>::has_normals(t); }) {
+        return point_set_traits<T>::has_normals(t);
+    } else {
+        return true;
+    }
+}
+
+/// Whether t stores a radius for every point (surfels).
+template <PointSet T>
+[[nodiscard]] bool has_radii(const T& t) {
+    if constexpr (requires { point_set_traits<T>::has_radii(t); }) {
+        return point_set_traits<T>::has_radii(t);
+    } else {
+        return false;
+    }
+}
+
+/// Copies the positions into a contiguous vector (the internal layout).
+template <PointSet T>
+[[nodiscard]] std::vector<Vec3> gather_points(const T& t) {
+    const std::size_t n = num_points(t);
+    std::vector<Vec3> out(n);
+    for (std::size_t i = 0; i < n; ++i) out[i] = point_at(t, i);
+    return out;
+}
+
+/// Copies the normals into a contiguous vector; empty when t has none.
+template <PointSet T>
+[[nodiscard]] std::vector<Vec3> gather_normals(const T& t) {
+    std::vector<Vec3> out;
+    if constexpr (OrientedPointSet<T>) {
+        if (!has_normals(t)) return out;
+        const std::size_t n = num_points(t);
+        out.resize(n);
+        for (std::size_t i = 0; i < n; ++i) out[i] = normal_at(t, i);
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------- meshes
+
+/// An indexed triangle mesh, read through mesh_traits<M>.
+template <class M>
+concept TriangleMesh = requires(const M& m, Index i) {
+    { mesh_traits<M>::num_vertices(m) } -> std::convertible_to<std::size_t>;
+    { mesh_traits<M>::num_faces(m) } -> std::convertible_to<std::size_t>;
+    { mesh_traits<M>::position(m, i) } -> std::convertible_to<Vec3>;
+    { mesh_traits<M>::face(m, i) } -> std::convertible_to<Face>;
+};
+
+/// A TriangleMesh whose vertex positions can be written (smoothing's output).
+template <class M>
+concept MutableTriangleMesh = TriangleMesh<M> && requires(M& m, Index i, const Vec3& p) {
+    mesh_traits<M>::set_position(m, i, p);
+};
+
+/// A TriangleMesh that can be cleared and built (reconstruction's output).
+template <class M>
+concept TopologyMutableMesh = TriangleMesh<M> && requires(M& m, const Vec3& p, const Face& f) {
+    mesh_traits<M>::clear(m);
+    { mesh_traits<M>::add_vertex(m, p) } -> std::convertible_to<Index>;
+    mesh_traits<M>::add_face(m, f);
+};
+
+template <TriangleMesh M>
+[[nodiscard]] std::size_t num_vertices(const M& m) {
+    return static_cast<std::size_t>(mesh_traits<M>::num_vertices(m));
+}
+template <TriangleMesh M>
+[[nodiscard]] std::size_t num_faces(const M& m) {
+    return static_cast<std::size_t>(mesh_traits<M>::num_faces(m));
+}
+/// Position of vertex v.
+template <TriangleMesh M>
+[[nodiscard]] Vec3 vertex_position(const M& m, Index v) {
+    return mesh_traits<M>::position(m, v);
+}
+/// Vertex indices of face f.
+template <TriangleMesh M>
+[[nodiscard]] Face face_at(const M& m, Index f) {
+    return mesh_traits<M>::face(m, f);
+}
+/// Writes the position of vertex v.
+template <MutableTriangleMesh M>
+void set_vertex_position(M& m, Index v, const Vec3& p) {
+    mesh_traits<M>::set_position(m, v, p);
+}
+
+// ---------------------------------------------------------------- scalar fields
+
+/// A scalar field f: R^3 -> R, called as f(x). Its gradient is optional.
+template <class F>
+concept ScalarField = requires(const F& f, const Vec3& x) {
+    { f(x) } -> std::convertible_to<Scalar>;
+};
+
+/// A ScalarField that also gives its gradient: f.gradient(x) -> Vec3.
+template <class F>
+concept DifferentiableScalarField = ScalarField<F> && requires(const F& f, const Vec3& x) {
+    { f.gradient(x) } -> std::convertible_to<Vec3>;
+};
+
+// ---------------------------------------------------------------- spatial indices
+
+/// One neighbour found by a spatial query. The distance is squared.
+struct Neighbor {
+    Index index = 0;
+    Scalar squared_distance = 0;
+};
+
+/// A spatial index over a point set: k-nearest and radius queries returning
+/// Neighbor{index, squared_distance}, sorted by increasing distance.
+template <class S>
+concept SpatialIndex = requires(const S& s, const Vec3& q, std::size_t k, Scalar r,
+                                std::vector<Neighbor>& out) {
+    { s.size() } -> std::convertible_to<std::size_t>;
+    s.knn(q, k, out);
+    s.radius_search_squared(q, r, out);
+    { s.nearest(q) } -> std::convertible_to<Neighbor>;
+};
+
+}  // namespace kintsugi
