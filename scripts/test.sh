@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Builds kintsugi and runs the whole test suite twice: an optimised build
+# (tests, examples, the CLI and the benchmarks, which must compile), then a
+# build under AddressSanitizer + UndefinedBehaviorSanitizer.
+# Usage: scripts/test.sh [--no-sanitize]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+scripts/setup.sh
+
+jobs=$(nproc 2>/dev/null || echo 2)
+sanitize=1
+[ "${1:-}" = "--no-sanitize" ] && sanitize=0
+
+if command -v ccache >/dev/null; then
+  export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/kintsugi-ccache}"
+  ccache --max-size=5G >/dev/null 2>&1 || true
+fi
+
+run_suite() {
+  local dir=$1; shift
+  echo "== configure $dir" >&2
+  cmake -S "$root" -B "$dir" -G Ninja "$@" >/dev/null
+  echo "== build $dir" >&2
+  local t0=$SECONDS
+  cmake --build "$dir" -j "$jobs"
+  echo "== built $dir in $((SECONDS - t0)) s" >&2
+  echo "== test $dir" >&2
+  t0=$SECONDS
+  (cd "$dir" && ctest --output-on-failure -j "$jobs" --timeout 1500)
+  echo "== tested $dir in $((SECONDS - t0)) s" >&2
+}
+
+run_suite build/release -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_BENCH=ON
+
+if [ $sanitize -eq 1 ]; then
+  export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1
+  export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  run_suite build/asan -DCMAKE_BUILD_TYPE=Debug -DKINTSUGI_SANITIZE=address,undefined \
+    -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g"
+fi
