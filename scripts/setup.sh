@@ -4,7 +4,7 @@
 set -euo pipefail
 
 packages=(
-  g++ cmake ninja-build ccache pkg-config
+  g++ cmake ninja-build ccache pkg-config python3
   libeigen3-dev libcgal-dev libgmp-dev libmpfr-dev libboost-graph-dev
   libnanoflann-dev libtbb-dev libcli11-dev doctest-dev libbenchmark-dev
 )
