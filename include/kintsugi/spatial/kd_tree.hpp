@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -84,12 +85,17 @@ public:
     [[nodiscard]] const Vec3& point(std::size_t i) const { return pts()[i]; }
 
     /// The min(k, size()) nearest points to q, by increasing distance (ties by index).
+    /// @throws invalid_input if q has a NaN or infinite coordinate.
     void knn(const Vec3& q, std::size_t k, std::vector<Neighbor>& out) const {
         out.clear();
+        require_finite(q, "knn");
         k = std::min(k, pts().size());
         if (k == 0) return;
-        // Ask for one more than needed so that equal-distance ties at the k-th
-        // place are resolved by index, independently of the tree's layout.
+        // Ask for one more than needed: when the k-th and (k+1)-th distances
+        // differ, the k found are exactly the points within the k-th distance.
+        // When they tie, the tie may extend beyond what nanoflann returned (it
+        // keeps an arbitrary subset of equidistant points), so every point at
+        // most that far is collected and the tie resolved by index.
         const std::size_t kq = std::min(k + 1, pts().size());
         thread_local std::vector<std::size_t> idx;
         thread_local std::vector<Scalar> d2;
@@ -99,7 +105,9 @@ public:
         out.resize(found);
         for (std::size_t i = 0; i < found; ++i) out[i] = {idx[i], d2[i]};
         detail::sort_neighbors(out);
-        out.resize(std::min(k, found));
+        if (found > k && out[k - 1].squared_distance == out[k].squared_distance)
+            radius_search_squared(q, out[k - 1].squared_distance, out);
+        out.resize(std::min(k, out.size()));
     }
     /// Convenience overload returning a new vector.
     [[nodiscard]] std::vector<Neighbor> knn(const Vec3& q, std::size_t k) const {
@@ -110,9 +118,14 @@ public:
 
     /// All points whose squared distance to q is at most `squared_radius`,
     /// by increasing distance (ties by index).
+    /// A negative radius finds nothing.
+    /// @throws invalid_input if q has a NaN or infinite coordinate or the radius is NaN.
     void radius_search_squared(const Vec3& q, Scalar squared_radius, std::vector<Neighbor>& out) const {
         out.clear();
-        if (pts().empty() || !(squared_radius >= 0)) return;
+        require_finite(q, "radius_search_squared");
+        if (std::isnan(squared_radius))
+            throw invalid_input("kintsugi::KdTree::radius_search_squared: the squared radius is NaN");
+        if (pts().empty() || squared_radius < 0) return;
         thread_local std::vector<std::pair<std::size_t, Scalar>> hits;
         hits.clear();
         nanoflann::SearchParams params;
@@ -131,16 +144,21 @@ public:
         return out;
     }
 
-    /// The nearest point to q. @pre size() > 0
+    /// The nearest point to q (ties by index). @pre size() > 0
+    /// @throws invalid_input if the tree is empty or q has a NaN or infinite coordinate.
     [[nodiscard]] Neighbor nearest(const Vec3& q) const {
         if (pts().empty()) throw invalid_input("kintsugi::KdTree::nearest: the tree is empty");
-        std::size_t i = 0;
-        Scalar d2 = 0;
-        impl_->index->knnSearch(q.data(), 1, &i, &d2);
-        return {i, d2};
+        thread_local std::vector<Neighbor> nn;
+        knn(q, 1, nn);
+        return nn.front();
     }
 
 private:
+    static void require_finite(const Vec3& q, const char* fn) {
+        if (!q.allFinite())
+            throw invalid_input(std::string("kintsugi::KdTree::") + fn +
+                                ": the query point has a NaN or infinite coordinate");
+    }
     // Held behind a pointer so that moving a KdTree keeps nanoflann's pointer to
     // the dataset valid.
     struct Impl {

@@ -1,0 +1,311 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+// KdTree against brute force: k-nearest (with ties and k > n), inclusive radius
+// boundary, nearest, empty and moved-from trees, bad input, every point-set adapter.
+#include <doctest/doctest.h>
+
+#include <kintsugi/adapters/cgal.hpp>
+#include <kintsugi/adapters/eigen.hpp>
+#include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/adapters/projection.hpp>
+#include <kintsugi/adapters/std_vector.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/spatial/kd_tree.hpp>
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <utility>
+#include <vector>
+
+namespace ks = kintsugi;
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using PointSet3 = CGAL::Point_set_3<K::Point_3, K::Vector_3>;
+
+// Same arithmetic as nanoflann's L2_Simple_Adaptor, so distances compare bitwise.
+double sq_dist(const ks::Vec3& a, const ks::Vec3& b) {
+    double r = 0;
+    for (int d = 0; d < 3; ++d) {
+        const double diff = a[d] - b[d];
+        r += diff * diff;
+    }
+    return r;
+}
+
+std::vector<ks::Neighbor> brute_sorted(const std::vector<ks::Vec3>& pts, const ks::Vec3& q) {
+    std::vector<ks::Neighbor> all(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) all[i] = {i, sq_dist(q, pts[i])};
+    std::sort(all.begin(), all.end(), [](const ks::Neighbor& a, const ks::Neighbor& b) {
+        return a.squared_distance < b.squared_distance ||
+               (a.squared_distance == b.squared_distance && a.index < b.index);
+    });
+    return all;
+}
+
+std::vector<ks::Neighbor> brute_knn(const std::vector<ks::Vec3>& pts, const ks::Vec3& q, std::size_t k) {
+    auto all = brute_sorted(pts, q);
+    all.resize(std::min(k, all.size()));
+    return all;
+}
+
+std::vector<ks::Neighbor> brute_radius(const std::vector<ks::Vec3>& pts, const ks::Vec3& q, double r2) {
+    auto all = brute_sorted(pts, q);
+    std::vector<ks::Neighbor> out;
+    for (const auto& n : all)
+        if (n.squared_distance <= r2) out.push_back(n);
+    return out;
+}
+
+void check_same(const std::vector<ks::Neighbor>& got, const std::vector<ks::Neighbor>& want) {
+    REQUIRE(got.size() == want.size());
+    for (std::size_t i = 0; i < got.size(); ++i) {
+        CHECK(got[i].index == want[i].index);
+        CHECK(got[i].squared_distance == want[i].squared_distance);
+    }
+}
+
+std::vector<ks::Vec3> random_points(std::size_t n, unsigned seed) {
+    std::mt19937 rng(seed);
+    // Multiples of 1/1024 in [-1, 1]: exactly representable in float too.
+    std::uniform_int_distribution<int> u(-1024, 1024);
+    std::vector<ks::Vec3> p(n);
+    for (auto& x : p) x = ks::Vec3(u(rng), u(rng), u(rng)) / 1024.0;
+    return p;
+}
+
+// An integer grid: many exactly equidistant neighbours.
+std::vector<ks::Vec3> grid_points(int m) {
+    std::vector<ks::Vec3> p;
+    for (int x = 0; x < m; ++x)
+        for (int y = 0; y < m; ++y)
+            for (int z = 0; z < m; ++z) p.emplace_back(x, y, z);
+    // Shuffle so that index order differs from the tree's spatial order.
+    std::mt19937 rng(7);
+    std::shuffle(p.begin(), p.end(), rng);
+    return p;
+}
+
+}  // namespace
+
+static_assert(ks::SpatialIndex<ks::KdTree>);
+static_assert(!std::is_copy_constructible_v<ks::KdTree> && std::is_nothrow_move_constructible_v<ks::KdTree>);
+
+TEST_CASE("KdTree knn matches brute force on random points, k from 1 to beyond n") {
+    const auto pts = random_points(3000, 1);
+    const ks::KdTree tree(pts);
+    REQUIRE(tree.size() == pts.size());
+    const auto queries = random_points(150, 2);
+    std::vector<ks::Neighbor> got;
+    for (std::size_t k : {std::size_t{1}, std::size_t{2}, std::size_t{10}, std::size_t{64}, std::size_t{2999},
+                          std::size_t{3000}, std::size_t{5000}}) {
+        for (std::size_t qi = 0; qi < queries.size(); qi += (k > 100 ? 25 : 1)) {
+            tree.knn(queries[qi], k, got);
+            check_same(got, brute_knn(pts, queries[qi], k));
+        }
+    }
+    // Query at a data point: itself first at distance zero.
+    tree.knn(pts[42], 3, got);
+    CHECK(got[0].squared_distance == 0.0);
+    CHECK(pts[got[0].index] == pts[42]);
+    // k = 0 gives nothing; the returning overload agrees with the out-parameter one.
+    tree.knn(queries[0], 0, got);
+    CHECK(got.empty());
+    check_same(tree.knn(queries[1], 7), brute_knn(pts, queries[1], 7));
+}
+
+TEST_CASE("KdTree knn resolves equidistant ties by index, also beyond the k-th place") {
+    const auto pts = grid_points(7);
+    const ks::KdTree tree(pts);
+    std::vector<ks::Neighbor> got;
+    std::vector<ks::Vec3> queries;
+    for (int i = 0; i < 60; ++i) queries.push_back(pts[static_cast<std::size_t>(i)]);  // at grid points: 6 at distance 1
+    for (double c : {0.5, 1.5, 2.5, 3.5}) queries.emplace_back(c, c, c);                // cell centres: 8 corners tie
+    queries.emplace_back(3, 3.5, 3.5);                                                 // face centres: 4 tie
+    queries.emplace_back(-10, 3, 3);                                                    // outside the grid
+    for (const auto& q : queries)
+        for (std::size_t k = 1; k <= 40; ++k) {
+            tree.knn(q, k, got);
+            check_same(got, brute_knn(pts, q, k));
+        }
+}
+
+TEST_CASE("KdTree radius search is inclusive at the boundary and matches brute force") {
+    const auto pts = grid_points(6);
+    const ks::KdTree tree(pts);
+    std::vector<ks::Neighbor> got;
+    const ks::Vec3 centre(2, 2, 2);
+    // Exact squared radii: 0 -> itself, 1 -> +6 face neighbours, 2 -> +12, 3 -> +8 corners.
+    const std::array<std::size_t, 4> expected = {1, 7, 19, 27};
+    for (int r2 = 0; r2 <= 3; ++r2) {
+        tree.radius_search_squared(centre, r2, got);
+        CHECK(got.size() == expected[static_cast<std::size_t>(r2)]);
+        check_same(got, brute_radius(pts, centre, r2));
+    }
+    // Just below an exact boundary excludes it.
+    tree.radius_search_squared(centre, std::nextafter(1.0, 0.0), got);
+    CHECK(got.size() == 1);
+    // Random points, radius = exact distance to some point: that point is found.
+    const auto rp = random_points(2000, 3);
+    const ks::KdTree rtree(rp);
+    const auto queries = random_points(50, 4);
+    for (std::size_t qi = 0; qi < queries.size(); ++qi) {
+        const double r2 = sq_dist(queries[qi], rp[qi * 13]);
+        rtree.radius_search_squared(queries[qi], r2, got);
+        const auto want = brute_radius(rp, queries[qi], r2);
+        check_same(got, want);
+        CHECK(std::any_of(got.begin(), got.end(), [&](const ks::Neighbor& n) { return n.index == qi * 13; }));
+    }
+    // A negative radius finds nothing.
+    tree.radius_search_squared(centre, -1.0, got);
+    CHECK(got.empty());
+    check_same(tree.radius_search_squared(centre, 1.0), brute_radius(pts, centre, 1.0));
+}
+
+TEST_CASE("KdTree nearest matches brute force, ties by lowest index") {
+    const auto pts = grid_points(5);
+    const ks::KdTree tree(pts);
+    for (double c : {0.5, 1.5, 2.5}) {
+        const ks::Vec3 q(c, c, c);
+        const auto want = brute_knn(pts, q, 1)[0];
+        const auto got = tree.nearest(q);
+        CHECK(got.index == want.index);
+        CHECK(got.squared_distance == want.squared_distance);
+    }
+    const auto rp = random_points(1000, 5);
+    const ks::KdTree rtree(rp);
+    for (const auto& q : random_points(100, 6)) CHECK(rtree.nearest(q).index == brute_knn(rp, q, 1)[0].index);
+}
+
+TEST_CASE("empty KdTree: queries find nothing, nearest throws") {
+    const ks::KdTree empty_built(std::vector<ks::Vec3>{});
+    const ks::KdTree defaulted;
+    for (const ks::KdTree* t : {&empty_built, &defaulted}) {
+        CHECK(t->size() == 0);
+        CHECK(t->points().empty());
+        CHECK(t->knn(ks::Vec3(0, 0, 0), 5).empty());
+        CHECK(t->radius_search_squared(ks::Vec3(0, 0, 0), 100.0).empty());
+        CHECK_THROWS_WITH_AS((void)t->nearest(ks::Vec3(0, 0, 0)), doctest::Contains("empty"), ks::invalid_input);
+    }
+}
+
+TEST_CASE("KdTree rejects NaN and infinite coordinates") {
+    auto pts = random_points(20, 8);
+    pts[3].y() = std::numeric_limits<double>::quiet_NaN();
+    CHECK_THROWS_WITH_AS(ks::KdTree{pts}, doctest::Contains("point 3"), ks::invalid_input);
+    ks::PointCloud cloud;
+    cloud.points = random_points(20, 9);
+    cloud.points[11].z() = std::numeric_limits<double>::infinity();
+    CHECK_THROWS_WITH_AS(ks::KdTree{cloud}, doctest::Contains("point 11"), ks::invalid_input);
+
+    const ks::KdTree tree(random_points(20, 10));
+    const ks::Vec3 bad(0, std::numeric_limits<double>::quiet_NaN(), 0);
+    std::vector<ks::Neighbor> out;
+    CHECK_THROWS_WITH_AS(tree.knn(bad, 3, out), doctest::Contains("NaN"), ks::invalid_input);
+    CHECK_THROWS_AS(tree.radius_search_squared(bad, 1.0, out), ks::invalid_input);
+    CHECK_THROWS_AS((void)tree.nearest(bad), ks::invalid_input);
+    CHECK_THROWS_AS(tree.radius_search_squared(ks::Vec3::Zero(), std::nan(""), out), ks::invalid_input);
+}
+
+TEST_CASE("moving a KdTree keeps it working; the moved-from tree is empty") {
+    const auto pts = random_points(500, 11);
+    const auto queries = random_points(20, 12);
+    ks::KdTree a(pts);
+    ks::KdTree b(std::move(a));
+    CHECK(a.size() == 0);  // NOLINT(bugprone-use-after-move): documented state
+    CHECK(a.knn(queries[0], 4).empty());
+    CHECK(b.size() == pts.size());
+    ks::KdTree c;
+    c = std::move(b);
+    std::vector<ks::KdTree> trees;
+    trees.push_back(std::move(c));
+    for (int i = 0; i < 8; ++i) trees.emplace_back(random_points(10, 100 + i));  // reallocations move trees
+    for (const auto& q : queries) check_same(trees[0].knn(q, 9), brute_knn(pts, q, 9));
+    // The moved-from tree can be assigned a new tree and used again.
+    a = ks::KdTree(pts);
+    check_same(a.knn(queries[1], 5), brute_knn(pts, queries[1], 5));
+}
+
+TEST_CASE("KdTree queries are safe and identical from parallel loops") {
+    const auto pts = random_points(4000, 13);
+    const auto queries = random_points(2000, 14);
+    const ks::KdTree tree(pts);
+    std::vector<std::vector<ks::Neighbor>> par(queries.size());
+    ks::parallel_for(0, queries.size(), [&](std::size_t i) { tree.knn(queries[i], 12, par[i]); }, 16);
+    for (std::size_t i = 0; i < queries.size(); i += 7) check_same(par[i], brute_knn(pts, queries[i], 12));
+}
+
+namespace {
+struct UserSample {
+    float xyz[3];
+    std::array<float, 3> n;
+};
+
+// Builds each adapter type over the same positions.
+struct VecD {
+    std::vector<Eigen::Vector3d> c;
+    explicit VecD(const std::vector<ks::Vec3>& p) : c(p.begin(), p.end()) {}
+    const auto& set() const { return c; }
+};
+struct VecF {
+    std::vector<Eigen::Vector3f> c;
+    explicit VecF(const std::vector<ks::Vec3>& p) {
+        for (const auto& x : p) c.push_back(x.cast<float>());
+    }
+    const auto& set() const { return c; }
+};
+struct WithNormals {
+    std::vector<Eigen::Vector3d> p, n;
+    explicit WithNormals(const std::vector<ks::Vec3>& x) : p(x.begin(), x.end()), n(x.size(), Eigen::Vector3d::UnitZ()) {}
+    auto set() const { return ks::with_normals(p, n); }
+};
+struct Cloud {
+    ks::PointCloud c;
+    explicit Cloud(const std::vector<ks::Vec3>& p) { c.points = p; }
+    const auto& set() const { return c; }
+};
+struct CgalSet {
+    PointSet3 c;
+    explicit CgalSet(const std::vector<ks::Vec3>& p) {
+        for (const auto& x : p) c.insert(K::Point_3(x.x(), x.y(), x.z()));
+    }
+    const auto& set() const { return c; }
+};
+struct EigenP {
+    Eigen::MatrixXd P;
+    explicit EigenP(const std::vector<ks::Vec3>& p) : P(static_cast<Eigen::Index>(p.size()), 3) {
+        for (std::size_t i = 0; i < p.size(); ++i) P.row(static_cast<Eigen::Index>(i)) = p[i].transpose();
+    }
+    auto set() const { return ks::eigen_points(P); }
+};
+struct User {
+    std::vector<UserSample> s;
+    explicit User(const std::vector<ks::Vec3>& p) {
+        for (const auto& x : p) s.push_back({{float(x.x()), float(x.y()), float(x.z())}, {0, 0, 1}});
+    }
+    auto set() const { return ks::project_points(s, &UserSample::xyz); }
+};
+}  // namespace
+
+TEST_CASE_TEMPLATE("KdTree over every point-set adapter gives the brute-force answer", A, VecD, VecF, WithNormals,
+                   Cloud, CgalSet, EigenP, User) {
+    const auto pts = random_points(1500, 15);  // exactly representable in float
+    const A holder(pts);
+    const auto& set = holder.set();
+    static_assert(ks::PointSet<std::remove_cvref_t<decltype(set)>>);
+    const ks::KdTree tree(set);
+    REQUIRE(tree.size() == pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) REQUIRE(tree.point(i) == pts[i]);
+    for (const auto& q : random_points(40, 16)) {
+        check_same(tree.knn(q, 10), brute_knn(pts, q, 10));
+        check_same(tree.radius_search_squared(q, 0.05), brute_radius(pts, q, 0.05));
+        CHECK(tree.nearest(q).index == brute_knn(pts, q, 1)[0].index);
+    }
+}
