@@ -14,6 +14,8 @@ sanitize=1
 
 if command -v ccache >/dev/null; then
   export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/kintsugi-ccache}"
+  # Hits across checkouts in different directories (CI clones elsewhere).
+  export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=true
   ccache --max-size=5G >/dev/null 2>&1 || true
 fi
 
