@@ -1,0 +1,503 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file octree.hpp
+/// @brief A linear (Morton-ordered) octree over a bounding cube: per-cell point
+/// lists, 2:1 balance, face/edge/vertex neighbours, cell corners, point location.
+///
+/// @code
+/// kintsugi::Octree tree(points, {.max_level = 8});      // any PointSet
+/// for (kintsugi::Index c = 0; c < tree.size(); ++c) {
+///     kintsugi::Vec3 centre = tree.cell_center(c);
+///     for (kintsugi::Index p : tree.cell_points(c)) { ... }  // original point indices
+/// }
+/// std::vector<kintsugi::Index> nb;
+/// tree.neighbors(c, kintsugi::Adjacency::face, nb);
+/// kintsugi::Index leaf = tree.locate(q);               // Octree::npos outside the cube
+/// @endcode
+///
+/// Only the leaves are stored ("cells"): they tile the bounding cube without
+/// overlap and are sorted by the Morton code of their minimum corner, so every
+/// aligned block of space is a contiguous range of cells and point location is a
+/// binary search. Each cell's points are a contiguous range of one permuted index
+/// array (linear memory). Integer coordinates ("anchors") are in units of the
+/// finest grid, 2^-max_level of the cube side.
+///
+/// Subdivision rule (Nagai, Ohtake, Suzuki 2011, §2.1.2, after MPU): every cell
+/// that holds a point is split until the max level, so every input point lies in a
+/// cell of the max level; with `max_points_per_cell = n > 0` a cell is split only
+/// while it holds more than n points (the octree-RBF rule). Balance: neighbouring
+/// cells (sharing a face, an edge or a vertex) differ by at most one level.
+///
+/// The tree is immutable after construction; every query is const and thread-safe.
+/// Construction is deterministic whatever the thread count.
+
+#include <kintsugi/core/concepts.hpp>
+#include <kintsugi/core/error.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/types.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#ifdef KINTSUGI_PARALLEL_TBB
+#include <tbb/parallel_sort.h>
+#endif
+
+namespace kintsugi {
+
+/// Options of the Octree (aggregate; field order is API).
+struct OctreeParams {
+    /// Deepest level, in [1, 12]; the finest cells have side cube_side / 2^max_level.
+    int max_level = 8;
+    /// 0 (default, the PU paper's rule): split every cell that holds a point down to
+    /// max_level. n > 0: split a cell only while it holds more than n points.
+    std::size_t max_points_per_cell = 0;
+    /// 2:1 balance across faces, edges and vertices (the PU paper's requirement).
+    bool balance = true;
+    /// Side of the bounding cube, in the points' units. 0 (default): the longest side
+    /// of the points' bounding box (1 if all points coincide), centred on the box.
+    Scalar cube_side = 0;
+    /// Minimum corner of the bounding cube; used only when cube_side > 0.
+    Vec3 cube_min = Vec3::Zero();
+};
+
+/// How two cells touch: through a face patch, only along an edge segment, or only
+/// at a corner point. `any` means any of the three (the 26-neighbourhood).
+enum class Adjacency { face, edge, vertex, any };
+
+/// One leaf of the Octree.
+struct OctreeCell {
+    std::uint64_t code = 0;   ///< Morton code of the minimum corner in the finest grid
+    Index point_begin = 0;    ///< first position of its points in Octree::point_indices()
+    Index point_end = 0;      ///< one past the last
+    std::uint32_t level = 0;  ///< 0 = the whole cube, max_level = finest
+};
+
+namespace detail {
+/// Spreads the low 21 bits of v so that bit i moves to bit 3i.
+[[nodiscard]] inline std::uint64_t morton_spread(std::uint64_t v) {
+    v &= 0x1fffffULL;
+    v = (v | v << 32) & 0x1f00000000ffffULL;
+    v = (v | v << 16) & 0x1f0000ff0000ffULL;
+    v = (v | v << 8) & 0x100f00f00f00f00fULL;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+    v = (v | v << 2) & 0x1249249249249249ULL;
+    return v;
+}
+/// Inverse of morton_spread.
+[[nodiscard]] inline std::uint32_t morton_compact(std::uint64_t v) {
+    v &= 0x1249249249249249ULL;
+    v = (v ^ (v >> 2)) & 0x10c30c30c30c30c3ULL;
+    v = (v ^ (v >> 4)) & 0x100f00f00f00f00fULL;
+    v = (v ^ (v >> 8)) & 0x1f0000ff0000ffULL;
+    v = (v ^ (v >> 16)) & 0x1f00000000ffffULL;
+    v = (v ^ (v >> 32)) & 0x1fffffULL;
+    return static_cast<std::uint32_t>(v);
+}
+/// Morton code of integer coordinates (x in bit 0, y in bit 1, z in bit 2).
+[[nodiscard]] inline std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    return morton_spread(x) | (morton_spread(y) << 1) | (morton_spread(z) << 2);
+}
+/// Integer coordinates of a Morton code.
+[[nodiscard]] inline std::array<std::uint32_t, 3> morton_decode(std::uint64_t c) {
+    return {morton_compact(c), morton_compact(c >> 1), morton_compact(c >> 2)};
+}
+template <class T>
+void sort_maybe_parallel(std::vector<T>& v) {
+#ifdef KINTSUGI_PARALLEL_TBB
+    if (v.size() > 100000) {
+        tbb::parallel_sort(v.begin(), v.end());
+        return;
+    }
+#endif
+    std::sort(v.begin(), v.end());
+}
+}  // namespace detail
+
+/// Linear octree over a bounding cube (see the file comment).
+class Octree {
+public:
+    /// Returned by locate() for a point outside the cube.
+    static constexpr Index npos = std::numeric_limits<Index>::max();
+
+    Octree() = default;
+
+    /// Builds the octree over any PointSet.
+    /// @tparam P a PointSet (read once into a contiguous copy)
+    /// @param points the input; coordinates in any unit
+    /// @param params max_level in [1, 12], subdivision rule, balance, optional cube
+    /// @pre points non-empty and finite; with an explicit cube, every point inside it
+    /// @throws invalid_input on an empty set, a NaN/Inf coordinate, max_level outside
+    ///         [1, 12], a negative/NaN cube_side, or a point outside the given cube
+    template <PointSet P>
+    explicit Octree(const P& points, const OctreeParams& params = {}) {
+        build(gather_points(points), params);
+    }
+    /// Same over positions already in the internal layout.
+    explicit Octree(const std::vector<Vec3>& points, const OctreeParams& params = {}) { build(points, params); }
+
+    // ------------------------------------------------------------ global data
+    /// Number of cells (leaves).
+    [[nodiscard]] std::size_t size() const { return cells_.size(); }
+    /// The cells, sorted by Morton code.
+    [[nodiscard]] const std::vector<OctreeCell>& cells() const { return cells_; }
+    [[nodiscard]] const OctreeCell& cell(Index c) const { return cells_[c]; }
+    [[nodiscard]] int max_level() const { return max_level_; }
+    /// Minimum corner of the bounding cube (input units).
+    [[nodiscard]] const Vec3& cube_min() const { return cube_min_; }
+    /// Side of the bounding cube (input units).
+    [[nodiscard]] Scalar cube_side() const { return side_; }
+    /// Number of indexed points.
+    [[nodiscard]] std::size_t num_points() const { return order_.size(); }
+    /// All point indices, grouped by cell (cell c owns [point_begin, point_end)).
+    [[nodiscard]] const std::vector<Index>& point_indices() const { return order_; }
+    /// Indices (into the input) of the points inside cell c.
+    [[nodiscard]] std::span<const Index> cell_points(Index c) const {
+        return {order_.data() + cells_[c].point_begin, cells_[c].point_end - cells_[c].point_begin};
+    }
+    /// Number of cells at each level 0..max_level.
+    [[nodiscard]] std::vector<std::size_t> cells_per_level() const {
+        std::vector<std::size_t> n(static_cast<std::size_t>(max_level_) + 1, 0);
+        for (const auto& c : cells_) ++n[c.level];
+        return n;
+    }
+
+    // ------------------------------------------------------------ cell geometry
+    /// Minimum corner of cell c in finest-grid integer units.
+    [[nodiscard]] std::array<std::uint32_t, 3> cell_anchor(Index c) const { return detail::morton_decode(cells_[c].code); }
+    /// Side of cell c in finest-grid units (2^(max_level - level)).
+    [[nodiscard]] std::uint32_t cell_extent(Index c) const { return 1u << (max_level_ - static_cast<int>(cells_[c].level)); }
+    /// Side length of cell c (input units).
+    [[nodiscard]] Scalar cell_side(Index c) const { return side_ / static_cast<Scalar>(1u << cells_[c].level); }
+    /// Minimum corner of cell c (input units).
+    [[nodiscard]] Vec3 cell_min(Index c) const {
+        const auto a = cell_anchor(c);
+        return cube_min_ + unit_ * Vec3(a[0], a[1], a[2]);
+    }
+    /// Maximum corner of cell c (input units).
+    [[nodiscard]] Vec3 cell_max(Index c) const { return cell_min(c) + Vec3::Constant(cell_side(c)); }
+    /// Centre of cell c (input units).
+    [[nodiscard]] Vec3 cell_center(Index c) const { return cell_min(c) + Vec3::Constant(cell_side(c) / 2); }
+    /// Length of the diagonal of cell c (input units).
+    [[nodiscard]] Scalar cell_diagonal(Index c) const { return cell_side(c) * std::sqrt(Scalar(3)); }
+    /// The 8 corners of cell c; corner k has offset ((k&1), (k>>1)&1, (k>>2)&1) x side.
+    [[nodiscard]] std::array<Vec3, 8> cell_corners(Index c) const {
+        const Vec3 lo = cell_min(c);
+        const Scalar s = cell_side(c);
+        std::array<Vec3, 8> out;
+        for (int k = 0; k < 8; ++k) out[static_cast<std::size_t>(k)] = lo + s * Vec3(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+        return out;
+    }
+
+    // ------------------------------------------------------------ queries
+    /// The cell containing q (closed cube: points on the upper faces belong to the
+    /// last cell), or npos when q is outside the cube or not finite.
+    [[nodiscard]] Index locate(const Vec3& q) const {
+        if (cells_.empty() || !q.allFinite()) return npos;
+        const Vec3 t = (q - cube_min_) / unit_;
+        const Scalar n = static_cast<Scalar>(1u << max_level_);
+        if ((t.array() < 0).any() || (t.array() > n).any()) return npos;
+        const std::uint32_t top = (1u << max_level_) - 1;
+        std::array<std::uint32_t, 3> g{};
+        for (int k = 0; k < 3; ++k) g[k] = std::min(top, static_cast<std::uint32_t>(t[k]));
+        return locate_code(detail::morton_encode(g[0], g[1], g[2]));
+    }
+
+    /// The cell containing the finest-grid cell with Morton code `code`.
+    [[nodiscard]] Index locate_code(std::uint64_t code) const {
+        auto it = std::upper_bound(codes_.begin(), codes_.end(), code);
+        return static_cast<Index>(it - codes_.begin()) - 1;
+    }
+
+    /// The cells touching cell c with the given kind of contact, sorted by index.
+    /// face: share a 2D patch of a face; edge: touch only along a segment;
+    /// vertex: touch only at a point; any: all of them.
+    void neighbors(Index c, Adjacency kind, std::vector<Index>& out) const {
+        out.clear();
+        const auto a = cell_anchor(c);
+        const std::int64_t s = cell_extent(c);
+        const std::int64_t n = std::int64_t{1} << max_level_;
+        const std::uint32_t level = cells_[c].level;
+        for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    if (dx == 0 && dy == 0 && dz == 0) continue;
+                    const std::int64_t qx = a[0] + dx * s, qy = a[1] + dy * s, qz = a[2] + dz * s;
+                    if (qx < 0 || qy < 0 || qz < 0 || qx >= n || qy >= n || qz >= n) continue;
+                    // Same-size region Q next to c; its cells are one Morton range.
+                    const std::uint64_t q0 = detail::morton_encode(static_cast<std::uint32_t>(qx),
+                                                                   static_cast<std::uint32_t>(qy),
+                                                                   static_cast<std::uint32_t>(qz));
+                    const Index first = locate_code(q0);
+                    if (cells_[first].level <= level) {
+                        push_if(c, first, kind, out);
+                        continue;
+                    }
+                    const std::uint64_t q1 = q0 + (std::uint64_t{1} << (3 * (max_level_ - static_cast<int>(level))));
+                    const auto last = static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(first),
+                                                                          codes_.end(), q1) -
+                                                         codes_.begin());
+                    for (Index j = first; j < last; ++j) push_if(c, j, kind, out);
+                }
+        std::sort(out.begin(), out.end());
+        out.erase(std::unique(out.begin(), out.end()), out.end());
+    }
+    /// Convenience overload returning a new vector.
+    [[nodiscard]] std::vector<Index> neighbors(Index c, Adjacency kind = Adjacency::any) const {
+        std::vector<Index> out;
+        neighbors(c, kind, out);
+        return out;
+    }
+
+    /// How cells a and b touch: 2 = face patch, 1 = edge segment, 0 = corner point,
+    /// -1 = they do not touch (or a == b).
+    [[nodiscard]] int contact_dimension(Index a, Index b) const {
+        if (a == b) return -1;
+        const auto pa = cell_anchor(a), pb = cell_anchor(b);
+        const std::int64_t sa = cell_extent(a), sb = cell_extent(b);
+        int dim = 0;
+        for (int k = 0; k < 3; ++k) {
+            const std::int64_t lo = std::max<std::int64_t>(pa[k], pb[k]);
+            const std::int64_t hi = std::min<std::int64_t>(pa[k] + sa, pb[k] + sb);
+            if (hi < lo) return -1;
+            if (hi > lo) ++dim;
+        }
+        return dim == 3 ? -1 : dim;
+    }
+
+    /// Visits every cell whose box passes `overlaps(lo, hi)` by descending the
+    /// implicit tree: `overlaps` is called on nodes (boxes in input units) and must
+    /// be conservative (true whenever a cell inside the box may be wanted);
+    /// `visit(c)` is called once per cell whose own box passed, in Morton order.
+    template <class Overlaps, class Visit>
+    void visit_cells(Overlaps&& overlaps, Visit&& visit) const {
+        if (cells_.empty()) return;
+        descend(0, 0, 0, cells_.size(), overlaps, visit);
+    }
+
+    /// The cells whose closed box intersects the closed box [lo, hi] (input units),
+    /// in Morton order.
+    void cells_in_box(const Vec3& lo, const Vec3& hi, std::vector<Index>& out) const {
+        out.clear();
+        visit_cells(
+            [&](const Vec3& a, const Vec3& b) { return (a.array() <= hi.array()).all() && (lo.array() <= b.array()).all(); },
+            [&](Index c) { out.push_back(c); });
+    }
+
+private:
+    void build(const std::vector<Vec3>& pts, const OctreeParams& params) {
+        const char* fn = "kintsugi::Octree";
+        if (params.max_level < 1 || params.max_level > 12)
+            throw invalid_input(std::string(fn) + ": max_level = " + std::to_string(params.max_level) +
+                                " is outside [1, 12]; pick a level between 1 and 12");
+        if (pts.empty()) throw invalid_input(std::string(fn) + ": the point set is empty; pass at least one point");
+        BoundingBox box;
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+            if (!pts[i].allFinite())
+                throw invalid_input(std::string(fn) + ": point " + std::to_string(i) +
+                                    " has a NaN or infinite coordinate; remove it first");
+            box.extend(pts[i]);
+        }
+        if (params.cube_side > 0 && std::isfinite(params.cube_side) && params.cube_min.allFinite()) {
+            side_ = params.cube_side;
+            cube_min_ = params.cube_min;
+            const Scalar tol = side_ * 1e-12;
+            if ((box.min.array() < cube_min_.array() - tol).any() ||
+                (box.max.array() > cube_min_.array() + side_ + tol).any())
+                throw invalid_input(std::string(fn) +
+                                    ": a point lies outside the given cube (cube_min, cube_side); enlarge the cube "
+                                    "or leave cube_side = 0");
+        } else if (params.cube_side == 0) {
+            side_ = box.extent().maxCoeff();
+            if (!(side_ > 0)) side_ = 1;
+            cube_min_ = box.center() - Vec3::Constant(side_ / 2);
+        } else {
+            throw invalid_input(std::string(fn) + ": cube_side must be 0 (automatic) or a positive finite length, "
+                                "with a finite cube_min");
+        }
+        max_level_ = params.max_level;
+        const int L = max_level_;
+        const std::uint32_t n = 1u << L;
+        unit_ = side_ / static_cast<Scalar>(n);
+
+        // 1. Morton codes of the finest cells holding each point, sorted.
+        std::vector<std::pair<std::uint64_t, Index>> keyed(pts.size());
+        parallel_for(0, pts.size(), [&](std::size_t i) {
+            const Vec3 t = (pts[i] - cube_min_) / unit_;
+            std::array<std::uint32_t, 3> g{};
+            for (int k = 0; k < 3; ++k) {
+                const Scalar v = std::floor(t[k]);
+                g[k] = v <= 0 ? 0u : (v >= static_cast<Scalar>(n - 1) ? n - 1 : static_cast<std::uint32_t>(v));
+            }
+            keyed[i] = {detail::morton_encode(g[0], g[1], g[2]), i};
+        }, 4096);
+        detail::sort_maybe_parallel(keyed);
+
+        // 2. Internal nodes per level (Morton codes at that level's resolution).
+        std::vector<std::vector<std::uint64_t>> internal(static_cast<std::size_t>(L));
+        {
+            const std::size_t thr = params.max_points_per_cell;
+            std::vector<std::pair<std::uint64_t, std::size_t>> runs, next;  // (prefix, count) at level m
+            // level L-1 from the sorted codes
+            for (const auto& [code, idx] : keyed) {
+                const std::uint64_t p = code >> 3;
+                if (!runs.empty() && runs.back().first == p)
+                    ++runs.back().second;
+                else
+                    runs.push_back({p, 1});
+            }
+            for (int m = L - 1; m >= 0; --m) {
+                auto& I = internal[static_cast<std::size_t>(m)];
+                for (const auto& [p, cnt] : runs)
+                    if (cnt > thr) I.push_back(p);
+                if (m == 0) break;
+                next.clear();
+                for (const auto& [p, cnt] : runs) {
+                    const std::uint64_t q = p >> 3;
+                    if (!next.empty() && next.back().first == q)
+                        next.back().second += cnt;
+                    else
+                        next.push_back({q, cnt});
+                }
+                runs.swap(next);
+            }
+        }
+
+        // 3. 2:1 balance over the 26-neighbourhood: for every internal node P at level
+        //    m >= 1, the same-size neighbours of P must exist, i.e. their parents (at
+        //    level m-1) must be internal. Processed from fine to coarse so that
+        //    additions propagate.
+        if (params.balance) {
+            for (int m = L - 1; m >= 1; --m) {
+                const auto& I = internal[static_cast<std::size_t>(m)];
+                auto& J = internal[static_cast<std::size_t>(m - 1)];
+                const std::int64_t np = std::int64_t{1} << (m - 1);
+                std::vector<std::uint64_t> add;
+                add.reserve(I.size() * 2);
+                // Siblings share a parent: gather the needed offsets of each parent
+                // in a 3x3x3 mask first, so each candidate is emitted once per parent.
+                for (std::size_t i = 0; i < I.size();) {
+                    const std::uint64_t parent = I[i] >> 3;
+                    std::uint32_t mask = 0;
+                    for (; i < I.size() && (I[i] >> 3) == parent; ++i) {
+                        const std::uint64_t k = I[i] & 7;  // child position: x bit 0, y bit 1, z bit 2
+                        const int ox = (k & 1) ? 1 : -1, oy = (k & 2) ? 1 : -1, oz = (k & 4) ? 1 : -1;
+                        for (int b = 0; b < 8; ++b)
+                            mask |= 1u << ((((b & 1) ? ox : 0) + 1) + 3 * (((b & 2) ? oy : 0) + 1) +
+                                           9 * (((b & 4) ? oz : 0) + 1));
+                    }
+                    const auto x = detail::morton_decode(parent);
+                    for (int bit = 0; bit < 27; ++bit) {
+                        if (!(mask & (1u << bit))) continue;
+                        const std::int64_t cx = std::int64_t{x[0]} + bit % 3 - 1, cy = std::int64_t{x[1]} + (bit / 3) % 3 - 1,
+                                           cz = std::int64_t{x[2]} + bit / 9 - 1;
+                        if (cx < 0 || cy < 0 || cz < 0 || cx >= np || cy >= np || cz >= np) continue;
+                        add.push_back(detail::morton_encode(static_cast<std::uint32_t>(cx), static_cast<std::uint32_t>(cy),
+                                                            static_cast<std::uint32_t>(cz)));
+                    }
+                }
+                detail::sort_maybe_parallel(add);
+                add.erase(std::unique(add.begin(), add.end()), add.end());
+                std::vector<std::uint64_t> merged;
+                merged.reserve(J.size() + add.size());
+                std::set_union(J.begin(), J.end(), add.begin(), add.end(), std::back_inserter(merged));
+                J.swap(merged);
+            }
+        }
+
+        // 4. Leaves: children of internal nodes that are not internal themselves.
+        cells_.clear();
+        if (internal[0].empty()) {
+            cells_.push_back(OctreeCell{0, 0, 0, 0});
+        } else {
+            // Each level's leaves come out sorted; merge the levels (coarse to fine).
+            std::vector<OctreeCell> level_cells, merged;
+            const auto by_code = [](const OctreeCell& a, const OctreeCell& b) { return a.code < b.code; };
+            for (int m = 0; m < L; ++m) {
+                const auto& I = internal[static_cast<std::size_t>(m)];
+                const std::vector<std::uint64_t> none;
+                const auto& C = (m + 1 < L) ? internal[static_cast<std::size_t>(m + 1)] : none;
+                auto it = C.begin();
+                const int shift = 3 * (L - m - 1);
+                level_cells.clear();
+                for (const std::uint64_t P : I)
+                    for (std::uint64_t k = 0; k < 8; ++k) {
+                        const std::uint64_t child = (P << 3) | k;
+                        while (it != C.end() && *it < child) ++it;
+                        if (it != C.end() && *it == child) continue;
+                        level_cells.push_back(OctreeCell{child << shift, 0, 0, static_cast<std::uint32_t>(m + 1)});
+                    }
+                if (level_cells.empty()) continue;
+                merged.resize(cells_.size() + level_cells.size());
+                std::merge(cells_.begin(), cells_.end(), level_cells.begin(), level_cells.end(), merged.begin(), by_code);
+                cells_.swap(merged);
+            }
+        }
+        codes_.resize(cells_.size());
+        for (std::size_t c = 0; c < cells_.size(); ++c) codes_[c] = cells_[c].code;
+
+        // 5. Point ranges: both sequences are in Morton order.
+        order_.resize(keyed.size());
+        for (std::size_t i = 0; i < keyed.size(); ++i) order_[i] = keyed[i].second;
+        std::size_t p = 0;
+        for (std::size_t c = 0; c < cells_.size(); ++c) {
+            const std::uint64_t end = c + 1 < cells_.size() ? cells_[c + 1].code : std::numeric_limits<std::uint64_t>::max();
+            cells_[c].point_begin = p;
+            while (p < keyed.size() && keyed[p].first < end) ++p;
+            cells_[c].point_end = p;
+        }
+    }
+
+    void push_if(Index c, Index j, Adjacency kind, std::vector<Index>& out) const {
+        const int d = contact_dimension(c, j);
+        if (d < 0) return;
+        if (kind == Adjacency::any || (kind == Adjacency::face && d == 2) || (kind == Adjacency::edge && d == 1) ||
+            (kind == Adjacency::vertex && d == 0))
+            out.push_back(j);
+    }
+
+    template <class Overlaps, class Visit>
+    void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Overlaps& overlaps,
+                 Visit& visit) const {
+        // Node (level, code in finest units) covers cells [first, last).
+        const auto a = detail::morton_decode(code);
+        const Scalar s = side_ / static_cast<Scalar>(1u << level);
+        const Vec3 lo = cube_min_ + unit_ * Vec3(a[0], a[1], a[2]);
+        if (!overlaps(lo, Vec3(lo + Vec3::Constant(s)))) return;
+        if (cells_[first].level <= level) {
+            visit(first);
+            return;
+        }
+        const int shift = 3 * (max_level_ - static_cast<int>(level) - 1);
+        Index b = first;
+        for (std::uint64_t k = 0; k < 8; ++k) {
+            const std::uint64_t child = code + (k << shift);
+            const std::uint64_t child_end = child + (std::uint64_t{1} << shift);
+            const auto e = static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(b),
+                                                               codes_.begin() + static_cast<std::ptrdiff_t>(last),
+                                                               child_end) -
+                                              codes_.begin());
+            if (e > b) descend(level + 1, child, b, e, overlaps, visit);
+            b = e;
+        }
+    }
+
+    int max_level_ = 0;
+    Vec3 cube_min_ = Vec3::Zero();
+    Scalar side_ = 0;
+    Scalar unit_ = 0;  // side of a finest cell
+    std::vector<OctreeCell> cells_;
+    std::vector<std::uint64_t> codes_;
+    std::vector<Index> order_;
+};
+
+}  // namespace kintsugi
