@@ -1,0 +1,292 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file common.hpp
+/// @brief Shared pieces of kintsugi's file readers: the whole file in memory, number
+/// parsing, line splitting, and the raw geometry every reader fills.
+///
+/// Why kintsugi parses files itself instead of calling CGAL's readers
+/// (CGAL::IO::read_PLY / read_OFF / read_OBJ / read_XYZ):
+///  - CGAL's readers return only a bool, and print their reason (when they give one) to
+///    std::cerr. kintsugi must throw an io_error naming the file and what is wrong
+///    (which line, which face, which index), and a library must never print.
+///  - They do not check coordinates for NaN/Inf, nor header counts against the file size
+///    before allocating, nor face indices against the vertex count in every path.
+///  - Speed: bench/bench_io.cpp reads the same 1M-point binary PLY with both in the same
+///    run; the numbers are in that file's header comment.
+/// So the parsing is written once, here and in the per-format headers next to this one:
+/// the whole file is read with one call, binary PLY is decoded straight from that buffer,
+/// text is parsed with std::from_chars (locale-independent, exact).
+
+#include <kintsugi/core/error.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/io/options.hpp>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+namespace kintsugi::detail::io {
+
+/// The whole content of a file, read with one call. `data()[size()]` is a '\0' sentinel.
+class FileBuffer {
+public:
+    FileBuffer() = default;
+    [[nodiscard]] const char* data() const { return data_.get(); }
+    [[nodiscard]] std::size_t size() const { return size_; }
+    [[nodiscard]] const char* begin() const { return data_.get(); }
+    [[nodiscard]] const char* end() const { return data_.get() + size_; }
+
+    /// Reads `path`; throws io_error when it is missing, not a regular file, unreadable or empty.
+    static FileBuffer read(const std::filesystem::path& path) {
+        const std::string name = path.string();
+        std::error_code ec;
+        const auto status = std::filesystem::status(path, ec);
+        if (ec || !std::filesystem::exists(status)) throw io_error(name, "file does not exist");
+        if (std::filesystem::is_directory(status)) throw io_error(name, "is a directory, not a file");
+        std::FILE* f = std::fopen(name.c_str(), "rb");
+        if (!f) throw io_error(name, "cannot open for reading: " + std::generic_category().message(errno));
+        struct Closer {
+            std::FILE* f;
+            ~Closer() { std::fclose(f); }
+        } closer{f};
+        FileBuffer buf;
+        const auto file_size = std::filesystem::file_size(path, ec);
+        if (!ec && file_size > 0) {
+            buf.data_.reset(new char[file_size + 1]);
+            buf.size_ = std::fread(buf.data_.get(), 1, file_size, f);
+            if (buf.size_ != file_size && std::ferror(f))
+                throw io_error(name, "read error: " + std::generic_category().message(errno));
+        } else {
+            // Not a regular file with a known size (a pipe, /proc): read in chunks.
+            std::string acc;
+            char chunk[1 << 16];
+            std::size_t n;
+            while ((n = std::fread(chunk, 1, sizeof chunk, f)) > 0) acc.append(chunk, n);
+            if (std::ferror(f)) throw io_error(name, "read error: " + std::generic_category().message(errno));
+            buf.data_.reset(new char[acc.size() + 1]);
+            std::memcpy(buf.data_.get(), acc.data(), acc.size());
+            buf.size_ = acc.size();
+        }
+        if (buf.size_ == 0) throw io_error(name, "file is empty");
+        buf.data_[buf.size_] = '\0';
+        return buf;
+    }
+
+private:
+    std::unique_ptr<char[]> data_;
+    std::size_t size_ = 0;
+};
+
+/// Everything a reader extracts; converted into the public types by read.hpp.
+struct RawGeometry {
+    std::vector<Vec3> vertices;
+    std::vector<Vec3> normals;  ///< empty or one per vertex
+    std::vector<Scalar> radii;  ///< empty or one per vertex
+    std::vector<Face> faces;
+    ReadInfo info;
+};
+
+/// Adds `what` to info.ignored_properties once.
+inline void note_ignored(ReadInfo& info, std::string what) {
+    auto& v = info.ignored_properties;
+    if (std::find(v.begin(), v.end(), what) == v.end()) v.push_back(std::move(what));
+}
+
+[[nodiscard]] inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }
+[[nodiscard]] inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+/// Parses the whole token as a double (a leading '+' is accepted; "nan"/"inf" parse and
+/// are rejected later by the finiteness checks). Returns false when it is not a number.
+[[nodiscard]] inline bool parse_double(std::string_view tok, double& out) {
+    if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+    if (tok.empty()) return false;
+    const char* b = tok.data();
+    const char* e = b + tok.size();
+    const auto r = std::from_chars(b, e, out);
+    if (r.ptr != e) return false;
+    if (r.ec == std::errc::result_out_of_range) {
+        // Over- or underflow (1e999, 1e-999): let strtod decide between +-inf and 0.
+        const std::string s(tok);
+        out = std::strtod(s.c_str(), nullptr);
+        return true;
+    }
+    return r.ec == std::errc();
+}
+
+/// Parses the whole token as an integer; "3.0"-style integral decimals are accepted.
+[[nodiscard]] inline bool parse_integer(std::string_view tok, long long& out) {
+    if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+    if (tok.empty()) return false;
+    const char* b = tok.data();
+    const char* e = b + tok.size();
+    const auto r = std::from_chars(b, e, out);
+    if (r.ec == std::errc() && r.ptr == e) return true;
+    double d = 0;
+    if (!parse_double(tok, d) || !std::isfinite(d) || d != std::floor(d) || std::fabs(d) > 9.0e15) return false;
+    out = static_cast<long long>(d);
+    return true;
+}
+
+/// Splits a text buffer into lines; tracks 1-based line numbers. Strips '\r' and, when
+/// `comment` is not '\0', everything from the comment character on.
+class LineReader {
+public:
+    LineReader(const char* begin, const char* end, char comment, std::size_t first_line = 1)
+        : p_(begin), end_(end), comment_(comment), line_(first_line - 1) {}
+
+    /// Next line with content (blank and comment-only lines skipped); false at the end.
+    bool next(std::string_view& out) {
+        while (p_ < end_) {
+            const char* b = p_;
+            const char* nl = static_cast<const char*>(std::memchr(p_, '\n', static_cast<std::size_t>(end_ - p_)));
+            const char* e = nl ? nl : end_;
+            p_ = nl ? nl + 1 : end_;
+            ++line_;
+            if (comment_ != '\0') {
+                const char* c = static_cast<const char*>(std::memchr(b, comment_, static_cast<std::size_t>(e - b)));
+                if (c) e = c;
+            }
+            while (b < e && is_space(*b)) ++b;
+            while (e > b && is_space(e[-1])) --e;
+            if (b == e) continue;
+            out = std::string_view(b, static_cast<std::size_t>(e - b));
+            return true;
+        }
+        return false;
+    }
+    /// Line number of the line last returned by next().
+    [[nodiscard]] std::size_t line() const { return line_; }
+    /// Bytes not yet consumed.
+    [[nodiscard]] std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
+
+private:
+    const char* p_;
+    const char* end_;
+    char comment_;
+    std::size_t line_;
+};
+
+/// Splits one line into whitespace-separated tokens.
+class Tokens {
+public:
+    explicit Tokens(std::string_view s) : p_(s.data()), end_(s.data() + s.size()) {}
+    bool next(std::string_view& out) {
+        while (p_ < end_ && is_space(*p_)) ++p_;
+        if (p_ == end_) return false;
+        const char* b = p_;
+        while (p_ < end_ && !is_space(*p_)) ++p_;
+        out = std::string_view(b, static_cast<std::size_t>(p_ - b));
+        return true;
+    }
+    /// Collects all remaining tokens.
+    void all(std::vector<std::string_view>& out) {
+        out.clear();
+        std::string_view t;
+        while (next(t)) out.push_back(t);
+    }
+
+private:
+    const char* p_;
+    const char* end_;
+};
+
+/// Shortens a token for an error message.
+[[nodiscard]] inline std::string quote(std::string_view tok) {
+    if (tok.size() > 40) return "'" + std::string(tok.substr(0, 37)) + "...'";
+    return "'" + std::string(tok) + "'";
+}
+
+[[nodiscard]] inline bool all_finite(const Vec3& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+
+/// Where a vertex comes from, for messages (line 0 = binary).
+[[nodiscard]] inline std::string vertex_where(std::size_t i, std::size_t line) {
+    std::string s = "vertex " + std::to_string(i) + " (counting from 0)";
+    if (line > 0) s += " on line " + std::to_string(line);
+    return s;
+}
+
+/// Where a face comes from, for messages: "face 12 (counting from 0)" plus ", line 40"
+/// for text formats (line 0 = binary).
+[[nodiscard]] inline std::string face_where(std::size_t face, std::size_t line) {
+    std::string s = "face " + std::to_string(face) + " (counting from 0)";
+    if (line > 0) s += " on line " + std::to_string(line);
+    return s;
+}
+
+/// Appends polygon `poly` (0-based indices) as fan triangles. Throws when it has fewer
+/// than 3 vertices, more than 3 and options.triangulate is false, or (when the vertex
+/// count is already known, `nv_known != npos`) an index out of range. When the vertex
+/// count is not known yet, `face_of_triangle` records the face number of each triangle
+/// for check_face_indices().
+inline void add_polygon(RawGeometry& g, const std::vector<Index>& poly, const ReadOptions& options,
+                        const std::string& path, std::size_t face, std::size_t line, std::size_t nv_known,
+                        std::vector<std::size_t>* face_of_triangle) {
+    const std::size_t n = poly.size();
+    if (n < 3)
+        throw io_error(path, face_where(face, line) + " has " + std::to_string(n) +
+                                 " vertices; a face needs at least 3");
+    if (n > 3) {
+        if (!options.triangulate)
+            throw io_error(path, face_where(face, line) + " has " + std::to_string(n) +
+                                     " vertices, but triangles are required (ReadOptions::triangulate is false)");
+        ++g.info.polygons_triangulated;
+    }
+    if (nv_known != static_cast<std::size_t>(-1)) {
+        for (const Index v : poly)
+            if (v >= nv_known)
+                throw io_error(path, face_where(face, line) + " uses vertex index " + std::to_string(v) +
+                                         ", out of range: the file has " + std::to_string(nv_known) + " vertices");
+    }
+    for (std::size_t i = 1; i + 1 < n; ++i) {
+        g.faces.push_back(Face{poly[0], poly[i], poly[i + 1]});
+        if (face_of_triangle) face_of_triangle->push_back(face);
+    }
+}
+
+/// Final consistency checks shared by every reader; fills the counts of info.
+inline void finish(RawGeometry& g) {
+    const std::size_t nv = g.vertices.size();
+    if (!g.normals.empty() && g.normals.size() != nv) g.normals.clear();
+    if (!g.radii.empty() && g.radii.size() != nv) g.radii.clear();
+    g.info.vertices = nv;
+    g.info.faces = g.faces.size();
+    g.info.has_normals = nv > 0 && g.normals.size() == nv;
+    g.info.has_radii = nv > 0 && g.radii.size() == nv;
+}
+
+/// Throws unless every face index is below the vertex count (for faces read before the
+/// vertex count was known). `face_of_triangle` maps each triangle to its face number.
+inline void check_face_indices(const RawGeometry& g, const std::vector<std::size_t>& face_of_triangle,
+                               const std::string& path) {
+    const std::size_t nv = g.vertices.size();
+    for (std::size_t t = 0; t < g.faces.size(); ++t) {
+        for (const Index v : g.faces[t]) {
+            if (v >= nv) {
+                const std::size_t f = t < face_of_triangle.size() ? face_of_triangle[t] : t;
+                throw io_error(path, face_where(f, 0) + " uses vertex index " + std::to_string(v) +
+                                         ", out of range: the file has " + std::to_string(nv) + " vertices");
+            }
+        }
+    }
+}
+
+/// Lower-case extension with the dot, e.g. ".ply".
+[[nodiscard]] inline std::string lower_extension(const std::filesystem::path& path) {
+    std::string ext = path.extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+}  // namespace kintsugi::detail::io

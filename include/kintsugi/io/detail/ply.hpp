@@ -1,0 +1,705 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file ply.hpp
+/// @brief PLY reader and writer (ascii, binary little- and big-endian). See common.hpp
+/// for why kintsugi parses files itself.
+///
+/// Read: element `vertex` with x y z (any PLY scalar type), optional nx ny nz and
+/// `radius`; element `face` with a list `vertex_indices` or `vertex_index` (any count and
+/// index integer types). Every other property and element is skipped and listed in
+/// ReadInfo::ignored_properties as "element.property". Counts from the header are
+/// checked against the bytes that follow before anything is allocated.
+
+#include <kintsugi/io/detail/common.hpp>
+#include <kintsugi/io/detail/output_file.hpp>
+
+#include <array>
+#include <bit>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace kintsugi::detail::io {
+
+enum class PlyType : std::uint8_t { i8, u8, i16, u16, i32, u32, f32, f64 };
+
+[[nodiscard]] inline std::size_t ply_size(PlyType t) {
+    switch (t) {
+        case PlyType::i8:
+        case PlyType::u8: return 1;
+        case PlyType::i16:
+        case PlyType::u16: return 2;
+        case PlyType::i32:
+        case PlyType::u32:
+        case PlyType::f32: return 4;
+        case PlyType::f64: return 8;
+    }
+    return 0;
+}
+[[nodiscard]] inline bool ply_is_integer(PlyType t) { return t != PlyType::f32 && t != PlyType::f64; }
+[[nodiscard]] inline bool ply_type_from_name(std::string_view s, PlyType& t) {
+    struct Entry {
+        std::string_view name;
+        PlyType type;
+    };
+    static constexpr Entry table[] = {
+        {"char", PlyType::i8},    {"int8", PlyType::i8},     {"uchar", PlyType::u8},   {"uint8", PlyType::u8},
+        {"short", PlyType::i16},  {"int16", PlyType::i16},   {"ushort", PlyType::u16}, {"uint16", PlyType::u16},
+        {"int", PlyType::i32},    {"int32", PlyType::i32},   {"uint", PlyType::u32},   {"uint32", PlyType::u32},
+        {"float", PlyType::f32},  {"float32", PlyType::f32}, {"double", PlyType::f64}, {"float64", PlyType::f64},
+    };
+    for (const Entry& e : table)
+        if (e.name == s) {
+            t = e.type;
+            return true;
+        }
+    return false;
+}
+
+/// What a property is used for.
+enum class PlyRole : std::uint8_t { ignored, x, y, z, nx, ny, nz, radius, indices };
+
+struct PlyProperty {
+    std::string name;
+    PlyType type = PlyType::f32;  ///< value type (item type for lists)
+    bool is_list = false;
+    PlyType count_type = PlyType::u8;
+    PlyRole role = PlyRole::ignored;
+};
+
+struct PlyElement {
+    std::string name;
+    std::uint64_t count = 0;
+    std::vector<PlyProperty> props;
+    std::size_t header_line = 0;
+};
+
+enum class PlyFormat { ascii, binary_le, binary_be };
+
+struct PlyHeader {
+    PlyFormat format = PlyFormat::ascii;
+    std::vector<PlyElement> elements;
+    std::size_t body_offset = 0;   ///< first byte after the end_header line
+    std::size_t body_first_line = 0;  ///< line number of the first body line (ascii)
+};
+
+/// Parses and checks the header; assigns roles to the properties.
+inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path, ReadInfo& info) {
+    PlyHeader h;
+    const char* p = buf.begin();
+    const char* end = buf.end();
+    auto bad = [&](std::size_t line, const std::string& what) -> io_error {
+        return io_error(path, "malformed PLY header (line " + std::to_string(line) + "): " + what);
+    };
+    std::size_t line_no = 0;
+    bool have_format = false, done = false;
+    std::vector<std::string_view> tok;
+    while (p < end && !done) {
+        const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
+        if (!nl) throw io_error(path, "malformed PLY header: no 'end_header' line");
+        std::string_view line(p, static_cast<std::size_t>(nl - p));
+        p = nl + 1;
+        ++line_no;
+        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+        if (line_no == 1) {
+            if (line != "ply") throw io_error(path, "not a PLY file: the first line is not 'ply'");
+            continue;
+        }
+        Tokens(line).all(tok);
+        if (tok.empty()) continue;
+        const std::string_view kw = tok[0];
+        if (kw == "comment" || kw == "obj_info") continue;
+        if (kw == "end_header") {
+            done = true;
+        } else if (kw == "format") {
+            if (tok.size() < 2) throw bad(line_no, "'format' needs a value");
+            if (tok[1] == "ascii") h.format = PlyFormat::ascii;
+            else if (tok[1] == "binary_little_endian") h.format = PlyFormat::binary_le;
+            else if (tok[1] == "binary_big_endian") h.format = PlyFormat::binary_be;
+            else throw bad(line_no, "unknown format " + quote(tok[1]));
+            have_format = true;
+        } else if (kw == "element") {
+            if (tok.size() != 3) throw bad(line_no, "expected 'element <name> <count>'");
+            PlyElement e;
+            e.name = std::string(tok[1]);
+            long long count = -1;
+            if (!parse_integer(tok[2], count) || count < 0)
+                throw bad(line_no, "element count " + quote(tok[2]) + " is not a non-negative integer");
+            e.count = static_cast<std::uint64_t>(count);
+            e.header_line = line_no;
+            for (const PlyElement& other : h.elements)
+                if (other.name == e.name) throw bad(line_no, "element '" + e.name + "' is declared twice");
+            h.elements.push_back(std::move(e));
+        } else if (kw == "property") {
+            if (h.elements.empty()) throw bad(line_no, "'property' before any 'element'");
+            PlyProperty prop;
+            if (tok.size() >= 2 && tok[1] == "list") {
+                if (tok.size() != 5) throw bad(line_no, "expected 'property list <count type> <item type> <name>'");
+                if (!ply_type_from_name(tok[2], prop.count_type)) throw bad(line_no, "unknown type " + quote(tok[2]));
+                if (!ply_type_from_name(tok[3], prop.type)) throw bad(line_no, "unknown type " + quote(tok[3]));
+                if (!ply_is_integer(prop.count_type))
+                    throw bad(line_no, "the count type of a list must be an integer type, not " + quote(tok[2]));
+                prop.is_list = true;
+                prop.name = std::string(tok[4]);
+            } else {
+                if (tok.size() != 3) throw bad(line_no, "expected 'property <type> <name>'");
+                if (!ply_type_from_name(tok[1], prop.type)) throw bad(line_no, "unknown type " + quote(tok[1]));
+                prop.name = std::string(tok[2]);
+            }
+            h.elements.back().props.push_back(std::move(prop));
+        } else {
+            throw bad(line_no, "unknown keyword " + quote(kw));
+        }
+    }
+    if (!done) throw io_error(path, "malformed PLY header: no 'end_header' line");
+    if (!have_format) throw io_error(path, "malformed PLY header: no 'format' line");
+    h.body_offset = static_cast<std::size_t>(p - buf.begin());
+    h.body_first_line = line_no + 1;
+
+    // Roles.
+    bool have_vertex = false;
+    for (PlyElement& e : h.elements) {
+        if (e.props.empty() && e.count > 0)
+            throw bad(e.header_line, "element '" + e.name + "' has no properties");
+        if (e.name == "vertex") {
+            have_vertex = true;
+            int found[8] = {};
+            auto role_of = [](std::string_view n) {
+                if (n == "x") return PlyRole::x;
+                if (n == "y") return PlyRole::y;
+                if (n == "z") return PlyRole::z;
+                if (n == "nx") return PlyRole::nx;
+                if (n == "ny") return PlyRole::ny;
+                if (n == "nz") return PlyRole::nz;
+                if (n == "radius") return PlyRole::radius;
+                return PlyRole::ignored;
+            };
+            for (PlyProperty& prop : e.props) {
+                if (prop.is_list) continue;
+                const PlyRole r = role_of(prop.name);
+                if (r == PlyRole::ignored) continue;
+                if (found[static_cast<int>(r)]++)
+                    throw bad(e.header_line, "vertex property '" + prop.name + "' is declared twice");
+                prop.role = r;
+            }
+            if (!found[1] || !found[2] || !found[3])
+                throw bad(e.header_line, "the vertex element needs scalar properties x, y and z");
+            const bool normals = found[4] && found[5] && found[6];
+            for (PlyProperty& prop : e.props) {
+                if (!normals && (prop.role == PlyRole::nx || prop.role == PlyRole::ny || prop.role == PlyRole::nz))
+                    prop.role = PlyRole::ignored;  // an incomplete normal is not a normal
+                if (prop.role == PlyRole::ignored) note_ignored(info, "vertex." + prop.name);
+            }
+        } else if (e.name == "face") {
+            bool found = false;
+            for (PlyProperty& prop : e.props) {
+                if (!found && prop.is_list && (prop.name == "vertex_indices" || prop.name == "vertex_index")) {
+                    if (!ply_is_integer(prop.type))
+                        throw bad(e.header_line, "face indices must have an integer type");
+                    prop.role = PlyRole::indices;
+                    found = true;
+                } else {
+                    note_ignored(info, "face." + prop.name);
+                }
+            }
+            if (!found)
+                throw bad(e.header_line, "the face element has no list property 'vertex_indices' or 'vertex_index'");
+        } else {
+            for (const PlyProperty& prop : e.props) note_ignored(info, e.name + "." + prop.name);
+        }
+    }
+    if (!have_vertex) throw io_error(path, "malformed PLY header: no 'vertex' element");
+    return h;
+}
+
+// ------------------------------------------------------------------ binary body
+
+template <class T, bool Swap>
+[[nodiscard]] inline T ply_load(const char* p) {
+    char b[sizeof(T)];
+    std::memcpy(b, p, sizeof(T));
+    if constexpr (Swap) std::reverse(b, b + sizeof(T));
+    T v;
+    std::memcpy(&v, b, sizeof(T));
+    return v;
+}
+
+template <bool Swap>
+[[nodiscard]] inline double ply_load_double(const char* p, PlyType t) {
+    switch (t) {
+        case PlyType::i8: return ply_load<std::int8_t, Swap>(p);
+        case PlyType::u8: return ply_load<std::uint8_t, Swap>(p);
+        case PlyType::i16: return ply_load<std::int16_t, Swap>(p);
+        case PlyType::u16: return ply_load<std::uint16_t, Swap>(p);
+        case PlyType::i32: return ply_load<std::int32_t, Swap>(p);
+        case PlyType::u32: return ply_load<std::uint32_t, Swap>(p);
+        case PlyType::f32: return ply_load<float, Swap>(p);
+        case PlyType::f64: return ply_load<double, Swap>(p);
+    }
+    return 0;
+}
+
+template <bool Swap>
+[[nodiscard]] inline long long ply_load_integer(const char* p, PlyType t) {
+    switch (t) {
+        case PlyType::i8: return ply_load<std::int8_t, Swap>(p);
+        case PlyType::u8: return ply_load<std::uint8_t, Swap>(p);
+        case PlyType::i16: return ply_load<std::int16_t, Swap>(p);
+        case PlyType::u16: return ply_load<std::uint16_t, Swap>(p);
+        case PlyType::i32: return ply_load<std::int32_t, Swap>(p);
+        case PlyType::u32: return ply_load<std::uint32_t, Swap>(p);
+        default: return -1;  // not reached: integer types are checked in the header
+    }
+}
+
+/// Per-vertex values collected from one item.
+struct PlyVertexValues {
+    double v[8] = {};
+};
+
+/// Stores the values of one vertex (checks finiteness).
+inline void ply_store_vertex(RawGeometry& g, const PlyVertexValues& val, bool normals, bool radius, std::size_t i,
+                             std::size_t line, const std::string& path) {
+    const Vec3 p(val.v[1], val.v[2], val.v[3]);
+    if (!all_finite(p))
+        throw io_error(path, vertex_where(i, line) + " has a non-finite coordinate (NaN or Inf)");
+    g.vertices.push_back(p);
+    if (normals) {
+        const Vec3 n(val.v[4], val.v[5], val.v[6]);
+        if (!all_finite(n)) throw io_error(path, vertex_where(i, line) + " has a non-finite normal (NaN or Inf)");
+        g.normals.push_back(n);
+    }
+    if (radius) {
+        if (!std::isfinite(val.v[7])) throw io_error(path, vertex_where(i, line) + " has a non-finite radius");
+        g.radii.push_back(val.v[7]);
+    }
+}
+
+[[nodiscard]] inline io_error ply_truncated(const std::string& path, const PlyElement& e, std::uint64_t item) {
+    return io_error(path, "truncated PLY body: the file ends inside " + e.name + " " + std::to_string(item) +
+                              " of " + std::to_string(e.count) + " declared in the header");
+}
+
+template <bool Swap>
+inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, const ReadOptions& options,
+                                 const std::string& path, RawGeometry& g) {
+    const char* p = buf.begin() + h.body_offset;
+    const char* const end = buf.end();
+    bool vertices_done = false;
+    std::vector<std::size_t> face_of_triangle;
+    bool deferred_faces = false;
+    std::vector<Index> poly;
+    for (const PlyElement& e : h.elements) {
+        // Smallest possible size of one item, to bound the count before allocating.
+        std::size_t min_size = 0;
+        bool fixed = true;
+        for (const PlyProperty& prop : e.props) {
+            if (prop.is_list) {
+                fixed = false;
+                min_size += ply_size(prop.count_type) + (prop.role == PlyRole::indices ? 3 * ply_size(prop.type) : 0);
+            } else {
+                min_size += ply_size(prop.type);
+            }
+        }
+        const std::size_t remaining = static_cast<std::size_t>(end - p);
+        if (min_size > 0 && e.count > remaining / min_size)
+            throw io_error(path, "truncated PLY body: the header declares " + std::to_string(e.count) + " " + e.name +
+                                     " elements of at least " + std::to_string(min_size) + " bytes each, but only " +
+                                     std::to_string(remaining) + " bytes follow the header");
+        const std::size_t count = static_cast<std::size_t>(e.count);
+        if (e.name == "vertex") {
+            bool normals = false, radius = false;
+            for (const PlyProperty& prop : e.props) {
+                normals = normals || prop.role == PlyRole::nx;
+                radius = radius || prop.role == PlyRole::radius;
+            }
+            g.vertices.reserve(count);
+            if (normals) g.normals.reserve(count);
+            if (radius) g.radii.reserve(count);
+            PlyVertexValues val;
+            if (fixed) {
+                // Fast path: fixed stride, offsets precomputed, bounds checked once above.
+                struct Slot {
+                    std::size_t offset;
+                    PlyType type;
+                    int role;
+                };
+                std::vector<Slot> slots;
+                std::size_t off = 0;
+                for (const PlyProperty& prop : e.props) {
+                    if (prop.role != PlyRole::ignored) slots.push_back({off, prop.type, static_cast<int>(prop.role)});
+                    off += ply_size(prop.type);
+                }
+                const std::size_t stride = off;
+                for (std::size_t i = 0; i < count; ++i, p += stride) {
+                    for (const Slot& s : slots) val.v[s.role] = ply_load_double<Swap>(p + s.offset, s.type);
+                    ply_store_vertex(g, val, normals, radius, i, 0, path);
+                }
+            } else {
+                for (std::size_t i = 0; i < count; ++i) {
+                    for (const PlyProperty& prop : e.props) {
+                        if (prop.is_list) {
+                            const std::size_t cs = ply_size(prop.count_type);
+                            if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, i);
+                            const long long n = ply_load_integer<Swap>(p, prop.count_type);
+                            p += cs;
+                            const std::size_t is = ply_size(prop.type);
+                            if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
+                                throw ply_truncated(path, e, i);
+                            p += static_cast<std::size_t>(n) * is;
+                        } else {
+                            const std::size_t s = ply_size(prop.type);
+                            if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, i);
+                            if (prop.role != PlyRole::ignored)
+                                val.v[static_cast<int>(prop.role)] = ply_load_double<Swap>(p, prop.type);
+                            p += s;
+                        }
+                    }
+                    ply_store_vertex(g, val, normals, radius, i, 0, path);
+                }
+            }
+            vertices_done = true;
+        } else if (e.name == "face") {
+            const std::size_t nv_known = vertices_done ? g.vertices.size() : static_cast<std::size_t>(-1);
+            deferred_faces = !vertices_done;
+            g.faces.reserve(count);
+            for (std::size_t f = 0; f < count; ++f) {
+                for (const PlyProperty& prop : e.props) {
+                    if (prop.is_list) {
+                        const std::size_t cs = ply_size(prop.count_type);
+                        if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, f);
+                        const long long n = ply_load_integer<Swap>(p, prop.count_type);
+                        p += cs;
+                        const std::size_t is = ply_size(prop.type);
+                        if (n < 0)
+                            throw io_error(path, face_where(f, 0) + " has a negative vertex count " + std::to_string(n));
+                        if (static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
+                            throw ply_truncated(path, e, f);
+                        if (prop.role == PlyRole::indices) {
+                            poly.resize(static_cast<std::size_t>(n));
+                            for (std::size_t k = 0; k < poly.size(); ++k, p += is) {
+                                const long long idx = ply_load_integer<Swap>(p, prop.type);
+                                if (idx < 0)
+                                    throw io_error(path, face_where(f, 0) + " uses a negative vertex index " +
+                                                             std::to_string(idx));
+                                poly[k] = static_cast<Index>(idx);
+                            }
+                            add_polygon(g, poly, options, path, f, 0, nv_known,
+                                        deferred_faces ? &face_of_triangle : nullptr);
+                        } else {
+                            p += static_cast<std::size_t>(n) * is;
+                        }
+                    } else {
+                        const std::size_t s = ply_size(prop.type);
+                        if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, f);
+                        p += s;
+                    }
+                }
+            }
+        } else if (fixed) {
+            p += count * min_size;  // checked against the remaining bytes above
+        } else {
+            for (std::size_t i = 0; i < count; ++i) {
+                for (const PlyProperty& prop : e.props) {
+                    if (prop.is_list) {
+                        const std::size_t cs = ply_size(prop.count_type);
+                        if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, i);
+                        const long long n = ply_load_integer<Swap>(p, prop.count_type);
+                        p += cs;
+                        const std::size_t is = ply_size(prop.type);
+                        if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
+                            throw ply_truncated(path, e, i);
+                        p += static_cast<std::size_t>(n) * is;
+                    } else {
+                        const std::size_t s = ply_size(prop.type);
+                        if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, i);
+                        p += s;
+                    }
+                }
+            }
+        }
+    }
+    if (deferred_faces) check_face_indices(g, face_of_triangle, path);
+}
+
+// ------------------------------------------------------------------ ascii body
+
+/// Whitespace-separated tokens across lines, with line numbers.
+class AsciiCursor {
+public:
+    AsciiCursor(const char* b, const char* e, std::size_t line) : p_(b), end_(e), line_(line) {}
+    bool next(std::string_view& out) {
+        while (p_ < end_ && is_space(*p_)) {
+            if (*p_ == '\n') ++line_;
+            ++p_;
+        }
+        if (p_ == end_) return false;
+        const char* b = p_;
+        while (p_ < end_ && !is_space(*p_)) ++p_;
+        out = std::string_view(b, static_cast<std::size_t>(p_ - b));
+        return true;
+    }
+    [[nodiscard]] std::size_t line() const { return line_; }
+    [[nodiscard]] std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
+
+private:
+    const char* p_;
+    const char* end_;
+    std::size_t line_;
+};
+
+inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const ReadOptions& options,
+                                const std::string& path, RawGeometry& g) {
+    AsciiCursor cur(buf.begin() + h.body_offset, buf.end(), h.body_first_line);
+    bool vertices_done = false, deferred_faces = false;
+    std::vector<std::size_t> face_of_triangle;
+    std::vector<Index> poly;
+    std::string_view tok;
+    for (const PlyElement& e : h.elements) {
+        std::size_t min_tokens = 0;
+        for (const PlyProperty& prop : e.props)
+            min_tokens += prop.is_list ? (prop.role == PlyRole::indices ? 4 : 1) : 1;
+        // Every token takes at least one character and one separator (but the very last).
+        const std::size_t remaining = cur.remaining() + 1;
+        if (min_tokens > 0 && e.count > remaining / (2 * min_tokens))
+            throw io_error(path, "truncated PLY body: the header declares " + std::to_string(e.count) + " " + e.name +
+                                     " elements but only " + std::to_string(cur.remaining()) +
+                                     " bytes of text follow the header");
+        const std::size_t count = static_cast<std::size_t>(e.count);
+        auto next_token = [&](std::size_t item) {
+            if (!cur.next(tok)) throw ply_truncated(path, e, item);
+        };
+        auto number = [&](std::size_t item, const PlyProperty& prop) {
+            double d = 0;
+            if (!parse_double(tok, d))
+                throw io_error(path, "line " + std::to_string(cur.line()) + ": " + quote(tok) + " is not a number (" +
+                                         e.name + " " + std::to_string(item) + ", property " + prop.name + ")");
+            return d;
+        };
+        auto integer = [&](std::size_t item, const PlyProperty& prop) {
+            long long v = 0;
+            if (!parse_integer(tok, v))
+                throw io_error(path, "line " + std::to_string(cur.line()) + ": " + quote(tok) +
+                                         " is not an integer (" + e.name + " " + std::to_string(item) +
+                                         ", property " + prop.name + ")");
+            return v;
+        };
+        auto list_count = [&](std::size_t item, const PlyProperty& prop) {
+            next_token(item);
+            const long long n = integer(item, prop);
+            if (n < 0 || static_cast<std::size_t>(n) > cur.remaining())
+                throw io_error(path, "line " + std::to_string(cur.line()) + ": bad list length " + quote(tok) + " (" +
+                                         e.name + " " + std::to_string(item) + ", property " + prop.name + ")");
+            return static_cast<std::size_t>(n);
+        };
+        if (e.name == "vertex") {
+            bool normals = false, radius = false;
+            for (const PlyProperty& prop : e.props) {
+                normals = normals || prop.role == PlyRole::nx;
+                radius = radius || prop.role == PlyRole::radius;
+            }
+            g.vertices.reserve(count);
+            if (normals) g.normals.reserve(count);
+            if (radius) g.radii.reserve(count);
+            PlyVertexValues val;
+            for (std::size_t i = 0; i < count; ++i) {
+                std::size_t line = 0;
+                for (const PlyProperty& prop : e.props) {
+                    if (prop.is_list) {
+                        const std::size_t n = list_count(i, prop);
+                        for (std::size_t k = 0; k < n; ++k) next_token(i);
+                    } else {
+                        next_token(i);
+                        if (line == 0) line = cur.line();
+                        if (prop.role != PlyRole::ignored) {
+                            double d = number(i, prop);
+                            // Honour the declared type, as a binary file would: a `float` value is
+                            // the float nearest to the text (so ascii and binary copies agree).
+                            if (prop.type == PlyType::f32 && std::isfinite(d))
+                                d = std::fabs(d) > static_cast<double>(std::numeric_limits<float>::max())
+                                        ? std::numeric_limits<double>::infinity()  // rejected below
+                                        : static_cast<double>(static_cast<float>(d));
+                            val.v[static_cast<int>(prop.role)] = d;
+                        }
+                    }
+                }
+                ply_store_vertex(g, val, normals, radius, i, line, path);
+            }
+            vertices_done = true;
+        } else if (e.name == "face") {
+            const std::size_t nv_known = vertices_done ? g.vertices.size() : static_cast<std::size_t>(-1);
+            deferred_faces = !vertices_done;
+            g.faces.reserve(count);
+            for (std::size_t f = 0; f < count; ++f) {
+                for (const PlyProperty& prop : e.props) {
+                    if (prop.is_list) {
+                        const std::size_t n = list_count(f, prop);
+                        const std::size_t line = cur.line();
+                        if (prop.role == PlyRole::indices) {
+                            poly.resize(n);
+                            for (std::size_t k = 0; k < n; ++k) {
+                                next_token(f);
+                                const long long idx = integer(f, prop);
+                                if (idx < 0)
+                                    throw io_error(path, face_where(f, cur.line()) + " uses a negative vertex index " +
+                                                             std::to_string(idx));
+                                poly[k] = static_cast<Index>(idx);
+                            }
+                            add_polygon(g, poly, options, path, f, line, nv_known,
+                                        deferred_faces ? &face_of_triangle : nullptr);
+                        } else {
+                            for (std::size_t k = 0; k < n; ++k) next_token(f);
+                        }
+                    } else {
+                        next_token(f);
+                    }
+                }
+            }
+        } else {
+            for (std::size_t i = 0; i < count; ++i) {
+                for (const PlyProperty& prop : e.props) {
+                    if (prop.is_list) {
+                        const std::size_t n = list_count(i, prop);
+                        for (std::size_t k = 0; k < n; ++k) next_token(i);
+                    } else {
+                        next_token(i);
+                    }
+                }
+            }
+        }
+    }
+    if (deferred_faces) check_face_indices(g, face_of_triangle, path);
+}
+
+/// Reads a PLY file already in memory.
+inline RawGeometry read_ply(const FileBuffer& buf, const ReadOptions& options, const std::string& path) {
+    RawGeometry g;
+    const PlyHeader h = parse_ply_header(buf, path, g.info);
+    constexpr bool little = std::endian::native == std::endian::little;
+    switch (h.format) {
+        case PlyFormat::ascii:
+            g.info.format = "ply-ascii";
+            ply_read_ascii_body(buf, h, options, path, g);
+            break;
+        case PlyFormat::binary_le:
+            g.info.format = "ply-binary-le";
+            ply_read_binary_body<!little>(buf, h, options, path, g);
+            break;
+        case PlyFormat::binary_be:
+            g.info.format = "ply-binary-be";
+            ply_read_binary_body<little>(buf, h, options, path, g);
+            break;
+    }
+    finish(g);
+    return g;
+}
+
+// ------------------------------------------------------------------ writer
+
+/// What to write; pointers may be null (normals/radii empty means none).
+struct PlyWriteData {
+    const std::vector<Vec3>* vertices = nullptr;
+    const std::vector<Vec3>* normals = nullptr;
+    const std::vector<Scalar>* radii = nullptr;
+    const std::vector<Face>* faces = nullptr;
+    const std::vector<std::array<Index, 2>>* edges = nullptr;
+};
+
+/// Writes PLY: double x y z [nx ny nz] [radius], faces as `list uchar int vertex_indices`
+/// (uint when the vertex count needs it), edges as `int vertex1, vertex2`.
+inline void write_ply(AtomicOutputFile& out, const PlyWriteData& d, bool binary, bool big_endian) {
+    const std::size_t nv = d.vertices->size();
+    const bool normals = d.normals && !d.normals->empty();
+    const bool radii = d.radii && !d.radii->empty();
+    const std::size_t nf = d.faces ? d.faces->size() : 0;
+    const std::size_t ne = d.edges ? d.edges->size() : 0;
+    const bool wide = nv > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max());
+    const char* itype = wide ? "uint" : "int";
+
+    out.write("ply\nformat ");
+    out.write(!binary ? "ascii" : (big_endian ? "binary_big_endian" : "binary_little_endian"));
+    out.write(" 1.0\ncomment written by kintsugi\nelement vertex ");
+    out.put_uint(nv);
+    out.write("\nproperty double x\nproperty double y\nproperty double z\n");
+    if (normals) out.write("property double nx\nproperty double ny\nproperty double nz\n");
+    if (radii) out.write("property double radius\n");
+    if (d.faces) {
+        out.write("element face ");
+        out.put_uint(nf);
+        out.write("\nproperty list uchar ");
+        out.write(itype);
+        out.write(" vertex_indices\n");
+    }
+    if (d.edges) {
+        out.write("element edge ");
+        out.put_uint(ne);
+        out.write("\nproperty ");
+        out.write(itype);
+        out.write(" vertex1\nproperty ");
+        out.write(itype);
+        out.write(" vertex2\n");
+    }
+    out.write("end_header\n");
+
+    const bool swap = binary && (big_endian != (std::endian::native == std::endian::big));
+    auto put_index = [&](Index i) {
+        if (wide) out.put_binary(static_cast<std::uint32_t>(i), swap);
+        else out.put_binary(static_cast<std::int32_t>(i), swap);
+    };
+    for (std::size_t i = 0; i < nv; ++i) {
+        const Vec3& p = (*d.vertices)[i];
+        if (binary) {
+            for (int c = 0; c < 3; ++c) out.put_binary(p[c], swap);
+            if (normals)
+                for (int c = 0; c < 3; ++c) out.put_binary((*d.normals)[i][c], swap);
+            if (radii) out.put_binary((*d.radii)[i], swap);
+        } else {
+            for (int c = 0; c < 3; ++c) {
+                if (c) out.put(' ');
+                out.put_double(p[c]);
+            }
+            if (normals)
+                for (int c = 0; c < 3; ++c) {
+                    out.put(' ');
+                    out.put_double((*d.normals)[i][c]);
+                }
+            if (radii) {
+                out.put(' ');
+                out.put_double((*d.radii)[i]);
+            }
+            out.put('\n');
+        }
+    }
+    for (std::size_t f = 0; f < nf; ++f) {
+        const Face& t = (*d.faces)[f];
+        if (binary) {
+            out.put_binary(static_cast<std::uint8_t>(3), swap);
+            for (const Index v : t) put_index(v);
+        } else {
+            out.put('3');
+            for (const Index v : t) {
+                out.put(' ');
+                out.put_uint(v);
+            }
+            out.put('\n');
+        }
+    }
+    for (std::size_t k = 0; k < ne; ++k) {
+        const auto& ed = (*d.edges)[k];
+        if (binary) {
+            put_index(ed[0]);
+            put_index(ed[1]);
+        } else {
+            out.put_uint(ed[0]);
+            out.put(' ');
+            out.put_uint(ed[1]);
+            out.put('\n');
+        }
+    }
+}
+
+}  // namespace kintsugi::detail::io
