@@ -131,11 +131,14 @@ public:
     /// Each loop follows the directed boundary half-edges: for a boundary edge whose
     /// face runs a -> b, the boundary half-edge runs b -> a (CGAL's border half-edge),
     /// so a face (loop[i+1], loop[i], x) fills the hole with the orientation of its
-    /// neighbours. Loops are simple: where boundaries meet at a vertex (two holes
+    /// neighbours. Where the orientation is inconsistent (or the surface
+    /// non-orientable, e.g. a Moebius strip) the walk continues along the undirected
+    /// boundary. Loops are simple: where boundaries meet at a vertex (two holes
     /// touching, a bow-tie), the closed walk is split at the repeated vertex, so loops
-    /// touching at a vertex are reported separately. Every boundary half-edge is in
-    /// exactly one loop. With inconsistent orientation, half-edges may not close up;
-    /// such a piece is reported as an open chain that lists its last vertex too.
+    /// touching at a vertex are reported separately. Every boundary edge is in exactly
+    /// one loop. Where non-manifold edges leave a vertex with an odd number of
+    /// boundary edges, a piece cannot close: it is reported as an open chain that
+    /// lists its last vertex too.
     /// Cost: O(boundary edges) after the build.
     [[nodiscard]] std::vector<std::vector<Index>> boundary_loops() const;
 
@@ -265,23 +268,38 @@ inline void MeshTopology::build(std::size_t nv, const std::vector<Face>& faces) 
 
 inline std::vector<std::vector<Index>> MeshTopology::boundary_loops() const {
     constexpr Index none = static_cast<Index>(-1);
-    // Directed boundary half-edges (as edge ids), bucketed by their source vertex.
+    // Boundary edges bucketed by both endpoints.
     std::vector<Index> boundary;
     for (Index e = 0; e < edges_.size(); ++e)
         if (is_boundary_edge(e)) boundary.push_back(e);
-    std::vector<Index> out_offsets(num_vertices_ + 1, 0);
-    for (Index e : boundary) ++out_offsets[boundary_halfedge(e).first + 1];
-    for (std::size_t v = 0; v < num_vertices_; ++v) out_offsets[v + 1] += out_offsets[v];
-    std::vector<Index> out_edges(boundary.size());
-    {
-        std::vector<Index> fill(out_offsets.begin(), out_offsets.end() - 1);
-        for (Index e : boundary) out_edges[fill[boundary_halfedge(e).first]++] = e;
+    std::vector<Index> offsets(num_vertices_ + 1, 0);
+    for (Index e : boundary) {
+        ++offsets[edges_[e][0] + 1];
+        ++offsets[edges_[e][1] + 1];
     }
-    std::vector<char> used(out_edges.size(), 0);
-    auto unused_out = [&](Index v) {
-        for (Index i = out_offsets[v]; i < out_offsets[v + 1]; ++i)
-            if (!used[i]) return i;
-        return none;
+    for (std::size_t v = 0; v < num_vertices_; ++v) offsets[v + 1] += offsets[v];
+    std::vector<Index> incident(offsets[num_vertices_]);
+    std::vector<Index> source(edges_.size(), none);  // source of the boundary half-edge
+    {
+        std::vector<Index> fill(offsets.begin(), offsets.end() - 1);
+        for (Index e : boundary) {
+            incident[fill[edges_[e][0]]++] = e;
+            incident[fill[edges_[e][1]]++] = e;
+            source[e] = boundary_halfedge(e).first;
+        }
+    }
+    std::vector<char> used(edges_.size(), 0);
+    // Next edge from v: an unused boundary half-edge leaving v; failing that (the
+    // orientation is inconsistent there), any unused boundary edge at v.
+    auto next_from = [&](Index v) {
+        Index any = none;
+        for (Index i = offsets[v]; i < offsets[v + 1]; ++i) {
+            const Index e = incident[i];
+            if (used[e]) continue;
+            if (source[e] == v) return e;
+            if (any == none) any = e;
+        }
+        return any;
     };
 
     // Walk, and split off a simple loop whenever the walk returns to a vertex of the
@@ -295,25 +313,27 @@ inline std::vector<std::vector<Index>> MeshTopology::boundary_loops() const {
         path.resize(from);
         loops.push_back(std::move(loop));
     };
-    for (Index start = 0; start < out_edges.size(); ++start) {
+    for (Index start : boundary) {
         if (used[start]) continue;
-        Index cur = start;
+        Index e = start;
+        Index x = source[start];
         while (true) {
-            used[cur] = 1;
-            const auto [src, dst] = boundary_halfedge(out_edges[cur]);
-            pos[src] = path.size();
-            path.push_back(src);
-            if (pos[dst] != none) {
-                emit(pos[dst]);
+            used[e] = 1;
+            const Index y = edges_[e][0] == x ? edges_[e][1] : edges_[e][0];
+            pos[x] = path.size();
+            path.push_back(x);
+            if (pos[y] != none) {
+                emit(pos[y]);
                 if (path.empty()) break;
             }
-            cur = unused_out(dst);
-            if (cur == none) {  // open chain (inconsistent orientation)
-                path.push_back(dst);
-                pos[dst] = path.size() - 1;
+            e = next_from(y);
+            if (e == none) {  // open chain: the boundary has an odd-degree vertex here
+                pos[y] = path.size();
+                path.push_back(y);
                 emit(0);
                 break;
             }
+            x = y;
         }
     }
     return loops;
