@@ -7,10 +7,11 @@
 /// kintsugi parses files itself.
 ///
 /// Read: `v x y z [w]` (or `v x y z r g b`), `vn`, and `f` with corners `v`, `v/t`,
-/// `v//n`, `v/t/n`, negative (relative) indices, polygons. Per-vertex normals: when the
-/// faces reference `vn`, a vertex takes the normal its corners reference (the normalised
-/// mean of the unit normals when they reference several); when no face references `vn`
-/// and there are as many `vn` as `v`, they pair up by order. Normals are returned as
+/// `v//n`, `v/t/n`, negative (relative) indices, polygons. Per-vertex normals: when there
+/// are as many `vn` as `v` and every corner that names a normal names the one with its
+/// vertex's number (or none does), they pair up by order; otherwise a vertex takes the
+/// normal its corners reference (the normalised mean of the unit normals when they
+/// reference several), and the normals are dropped if some vertex has none. Normals are returned as
 /// stored (MeshLab writes unnormalised ones). Every other statement (vt, l, g, o, s,
 /// usemtl, mtllib, ...) is skipped and listed in ReadInfo::ignored_properties.
 
@@ -117,7 +118,11 @@ inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, c
                                          std::to_string(v + 1) + ", out of range: the file has " +
                                          std::to_string(nv) + " vertices");
     // Per-vertex normals.
-    if (!corner_normals.empty()) {
+    bool paired_by_order = !vn.empty() && vn.size() == nv;
+    for (const auto& [v, n] : corner_normals) paired_by_order = paired_by_order && v == n;
+    if (paired_by_order) {
+        g.normals = std::move(vn);  // `f a//a b//b c//c` (MeshLab, kintsugi) or no face references
+    } else if (!corner_normals.empty()) {
         constexpr Index none = static_cast<Index>(-1), several = static_cast<Index>(-2);
         std::vector<Index> which(nv, none);
         for (const auto& [v, n] : corner_normals) {
@@ -144,8 +149,7 @@ inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, c
             note_ignored(g.info, "vn (not given for every vertex)");
         }
     } else if (!vn.empty()) {
-        if (vn.size() == nv) g.normals = std::move(vn);
-        else note_ignored(g.info, "vn (count differs from v)");
+        note_ignored(g.info, "vn (count differs from v)");
     }
     finish(g);
     return g;
