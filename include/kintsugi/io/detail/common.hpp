@@ -13,8 +13,9 @@
 ///    (which line, which face, which index), and a library must never print.
 ///  - They do not check coordinates for NaN/Inf, nor header counts against the file size
 ///    before allocating, nor face indices against the vertex count in every path.
-///  - Speed: bench/bench_io.cpp reads the same 1M-point binary PLY with both in the same
-///    run; the numbers are in that file's header comment.
+///  - Speed: bench/bench_io.cpp reads the same 1M-point binary PLY (float32 x y z nx ny nz,
+///    24 MB) with both in the same run: kintsugi 68 ms CPU, CGAL::IO::read_PLY 269 ms for
+///    the points alone and 454 ms with normals, read_point_set 347 ms (details there).
 /// So the parsing is written once, here and in the per-format headers next to this one:
 /// the whole file is read with one call, binary PLY is decoded straight from that buffer,
 /// text is parsed with std::from_chars (locale-independent, exact).
