@@ -33,6 +33,7 @@
 /// The tree is immutable after construction; every query is const and thread-safe.
 /// Construction is deterministic whatever the thread count.
 
+#include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
@@ -214,7 +215,12 @@ public:
 
     /// The cell containing the finest-grid cell with Morton code `code`.
     [[nodiscard]] Index locate_code(std::uint64_t code) const {
-        auto it = std::upper_bound(codes_.begin(), codes_.end(), code);
+        // A table over a coarse grid narrows the binary search to one block.
+        const std::uint64_t b = code >> block_shift_;
+        const auto lo = static_cast<std::ptrdiff_t>(block_start_[b]);
+        const auto hi = b + 1 < block_start_.size() ? static_cast<std::ptrdiff_t>(block_start_[b + 1]) + 1
+                                                    : static_cast<std::ptrdiff_t>(codes_.size());
+        auto it = std::upper_bound(codes_.begin() + lo, codes_.begin() + hi, code);
         return static_cast<Index>(it - codes_.begin()) - 1;
     }
 
@@ -274,14 +280,16 @@ public:
         return dim == 3 ? -1 : dim;
     }
 
-    /// Visits every cell whose box passes `overlaps(lo, hi)` by descending the
-    /// implicit tree: `overlaps` is called on nodes (boxes in input units) and must
-    /// be conservative (true whenever a cell inside the box may be wanted);
-    /// `visit(c)` is called once per cell whose own box passed, in Morton order.
-    template <class Overlaps, class Visit>
-    void visit_cells(Overlaps&& overlaps, Visit&& visit) const {
+    /// Visits cells by descending the implicit tree. `classify(lo, hi)` is called on
+    /// nodes (boxes in input units) and returns 0 (or false) when no wanted cell lies
+    /// in the box, 2 when every cell in the box is wanted (they are then visited
+    /// without further calls), and 1 (or true) otherwise. `visit(c)` is called once
+    /// per wanted cell, in Morton order; a cell reached through "1" is visited when
+    /// classify on its own box returned non-zero.
+    template <class Classify, class Visit>
+    void visit_cells(Classify&& classify, Visit&& visit) const {
         if (cells_.empty()) return;
-        descend(0, 0, 0, cells_.size(), overlaps, visit);
+        descend(0, 0, 0, cells_.size(), classify, visit);
     }
 
     /// The cells whose closed box intersects the closed box [lo, hi] (input units),
@@ -445,6 +453,19 @@ private:
         codes_.resize(cells_.size());
         for (std::size_t c = 0; c < cells_.size(); ++c) codes_[c] = cells_[c].code;
 
+        // Lookup table: for each block of a coarse grid, the cell holding its corner.
+        {
+            const int k = std::min(L, 6);
+            block_shift_ = 3 * (L - k);
+            block_start_.resize(std::size_t{1} << (3 * k));
+            std::size_t j = 0;
+            for (std::size_t b = 0; b < block_start_.size(); ++b) {
+                const std::uint64_t code = std::uint64_t{b} << block_shift_;
+                while (j + 1 < codes_.size() && codes_[j + 1] <= code) ++j;
+                block_start_[b] = static_cast<Index>(j);
+            }
+        }
+
         // 5. Point ranges: both sequences are in Morton order.
         order_.resize(keyed.size());
         for (std::size_t i = 0; i < keyed.size(); ++i) order_[i] = keyed[i].second;
@@ -465,28 +486,36 @@ private:
             out.push_back(j);
     }
 
-    template <class Overlaps, class Visit>
-    void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Overlaps& overlaps,
+    template <class Classify, class Visit>
+    void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Classify& classify,
                  Visit& visit) const {
         // Node (level, code in finest units) covers cells [first, last).
         const auto a = detail::morton_decode(code);
         const Scalar s = side_ / static_cast<Scalar>(1u << level);
         const Vec3 lo = cube_min_ + unit_ * Vec3(a[0], a[1], a[2]);
-        if (!overlaps(lo, Vec3(lo + Vec3::Constant(s)))) return;
+        const int cls = static_cast<int>(classify(lo, Vec3(lo + Vec3::Constant(s))));
+        if (cls == 0) return;
         if (cells_[first].level <= level) {
             visit(first);
+            return;
+        }
+        if (cls >= 2) {
+            for (Index c = first; c < last; ++c) visit(c);
             return;
         }
         const int shift = 3 * (max_level_ - static_cast<int>(level) - 1);
         Index b = first;
         for (std::uint64_t k = 0; k < 8; ++k) {
-            const std::uint64_t child = code + (k << shift);
-            const std::uint64_t child_end = child + (std::uint64_t{1} << shift);
-            const auto e = static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(b),
-                                                               codes_.begin() + static_cast<std::ptrdiff_t>(last),
-                                                               child_end) -
-                                              codes_.begin());
-            if (e > b) descend(level + 1, child, b, e, overlaps, visit);
+            const std::uint64_t child_end = code + ((k + 1) << shift);
+            Index e = b;
+            if (last - b <= 32) {
+                while (e < last && codes_[e] < child_end) ++e;
+            } else {
+                e = static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(b),
+                                                        codes_.begin() + static_cast<std::ptrdiff_t>(last), child_end) -
+                                       codes_.begin());
+            }
+            if (e > b) descend(level + 1, code + (k << shift), b, e, classify, visit);
             b = e;
         }
     }
@@ -498,6 +527,8 @@ private:
     std::vector<OctreeCell> cells_;
     std::vector<std::uint64_t> codes_;
     std::vector<Index> order_;
+    std::vector<Index> block_start_;  // see locate_code
+    int block_shift_ = 0;
 };
 
 }  // namespace kintsugi

@@ -1,0 +1,305 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file pu_cover.hpp
+/// @brief Internal: the support cover of the PU field (Nagai, Ohtake, Suzuki 2011,
+/// §2.1): local linear fits (eq. 2-5), radius by bisection to the error ε (eq. 6),
+/// candidate removal by the 8-corner rule, in random order until no candidate is left.
+///
+/// Everything here works in the normalised frame: the data are scaled so that the
+/// bounding box's longest side is 1, and the octree's cube is that unit cube.
+
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/spatial/kd_tree.hpp>
+#include <kintsugi/spatial/octree.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+namespace kintsugi::detail {
+
+/// Quadratic B-spline b2 of eq. (5).
+[[nodiscard]] inline Scalar pu_b2(Scalar d) {
+    if (d >= Scalar(1.5)) return 0;
+    if (d >= Scalar(0.5)) return (Scalar(1.5) - d) * (Scalar(1.5) - d) / 2;
+    return Scalar(0.75) - d * d;
+}
+/// Derivative of pu_b2.
+[[nodiscard]] inline Scalar pu_b2_derivative(Scalar d) {
+    if (d >= Scalar(1.5)) return 0;
+    if (d >= Scalar(0.5)) return d - Scalar(1.5);
+    return -2 * d;
+}
+
+/// One support in the normalised frame: g(x) = m·(x - d) on the open ball (c, r).
+struct PUSupportData {
+    Vec3 c = Vec3::Zero();
+    Scalar r = 0;
+    Vec3 m = Vec3::Zero();  ///< unit, pointing into the object (f > 0 inside)
+    Vec3 d = Vec3::Zero();
+    std::size_t count = 0;   ///< input points with |p - c| < r
+    std::uint32_t level = 0; ///< level of the octree cell the centre came from
+    Index cell = 0;          ///< that cell
+    bool fallback = false;   ///< no usable fit: tangent plane of the nearest input point
+};
+
+/// Inputs of the cover, all in the normalised frame.
+struct PUCoverInput {
+    const std::vector<Vec3>* points = nullptr;
+    const std::vector<Vec3>* normals = nullptr;  ///< unit, pointing INTO the object
+    const KdTree* tree = nullptr;                ///< over *points
+    const Octree* octree = nullptr;              ///< over *points, unit cube
+    Scalar epsilon = 4e-3;
+    std::uint64_t seed = 0;
+};
+
+/// Result of a fit on the points within radius r (a prefix of the sorted neighbours).
+struct PUFitState {
+    Vec3 m = Vec3::Zero(), d = Vec3::Zero();
+    std::size_t count = 0;
+    bool valid = false;  ///< at least one point and a non-degenerate normal sum
+};
+
+/// Weighted linear fit (eq. 3, weights eq. 4) over the neighbours closer than r.
+/// `dist` holds their distances, increasing; `idx` their indices.
+inline PUFitState pu_fit(const PUCoverInput& in, const Vec3& c, Scalar r, const std::vector<Index>& idx,
+                         const std::vector<Scalar>& dist) {
+    (void)c;
+    PUFitState s;
+    const auto& P = *in.points;
+    const auto& N = *in.normals;
+    const std::size_t k = static_cast<std::size_t>(std::lower_bound(dist.begin(), dist.end(), r) - dist.begin());
+    s.count = k;
+    if (k == 0) return s;
+    Scalar sw = 0;
+    Vec3 sn = Vec3::Zero(), sp = Vec3::Zero();
+    const Scalar inv = Scalar(1.5) / r;
+    for (std::size_t j = 0; j < k; ++j) {
+        const Scalar w = pu_b2(dist[j] * inv);
+        sw += w;
+        sn += w * N[idx[j]];
+        sp += w * P[idx[j]];
+    }
+    const Scalar len = sn.norm();
+    if (!(sw > 0) || !(len > Scalar(1e-9) * sw)) return s;
+    s.m = sn / len;
+    s.d = sp / sw;
+    s.valid = true;
+    return s;
+}
+
+/// Eq. (6) test: whether the fit at radius r keeps max |g(p_j)| <= ε over the points
+/// closer than r. An empty ball passes (error 0); a degenerate fit fails.
+inline bool pu_radius_ok(const PUCoverInput& in, const Vec3& c, Scalar r, const std::vector<Index>& idx,
+                         const std::vector<Scalar>& dist) {
+    const PUFitState s = pu_fit(in, c, r, idx, dist);
+    if (s.count == 0) return true;
+    if (!s.valid) return false;
+    const auto& P = *in.points;
+    const Scalar md = s.m.dot(s.d);
+    for (std::size_t j = 0; j < s.count; ++j)
+        if (std::abs(s.m.dot(P[idx[j]]) - md) > in.epsilon) return false;
+    return true;
+}
+
+/// Computes the support of candidate cell `cell`: radius by bisection on eq. (6),
+/// never below 0.75 x the cell diagonal, then the fit at that radius. A pure
+/// function of the cell (thread-safe), so candidates can be computed speculatively.
+inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
+    const Octree& oct = *in.octree;
+    PUSupportData out;
+    out.c = oct.cell_center(cell);
+    out.level = oct.cell(cell).level;
+    out.cell = cell;
+    const Scalar r_min = Scalar(0.75) * oct.cell_diagonal(cell);
+    // A ball of this radius around any point of the cube holds the whole cube.
+    const Scalar r_cap = std::max(r_min, Scalar(2) * std::sqrt(Scalar(3)) * oct.cube_side());
+    const int bisection_steps = 30;
+    const Scalar bisection_tolerance = 2e-3;  // relative width of the final bracket
+
+    thread_local std::vector<Neighbor> nb;
+    thread_local std::vector<Index> idx;
+    thread_local std::vector<Scalar> dist;
+    auto query = [&](Scalar R) {
+        // Slightly larger than R so that every point with distance < R is included.
+        in.tree->radius_search_squared(out.c, R * R * (1 + 1e-12), nb);
+        idx.resize(nb.size());
+        dist.resize(nb.size());
+        for (std::size_t j = 0; j < nb.size(); ++j) {
+            idx[j] = nb[j].index;
+            dist[j] = std::sqrt(nb[j].squared_distance);
+        }
+    };
+
+    // Every ball smaller than the distance to the nearest point is empty and passes
+    // eq. (6) trivially, so the search starts there (far from the data this saves
+    // the queries that would return nothing, then everything).
+    const Scalar d0 = std::sqrt(in.tree->nearest(out.c).squared_distance);
+    Scalar r = r_min;
+    query(r_min);
+    if (pu_radius_ok(in, out.c, r_min, idx, dist)) {
+        Scalar lo = std::max(r_min, std::min(d0, r_cap)), hi = lo;
+        bool bracketed = false;
+        while (hi < r_cap) {
+            // Grow by 1.5 (a surface ball then holds ~2.25x the points: the largest
+            // query stays close to the final radius).
+            hi = std::min(Scalar(1.5) * hi, r_cap);
+            query(hi);
+            if (!pu_radius_ok(in, out.c, hi, idx, dist)) {
+                bracketed = true;
+                break;
+            }
+            lo = hi;
+        }
+        if (bracketed) {
+            for (int it = 0; it < bisection_steps && hi - lo > bisection_tolerance * lo; ++it) {
+                const Scalar mid = (lo + hi) / 2;
+                if (pu_radius_ok(in, out.c, mid, idx, dist))
+                    lo = mid;
+                else
+                    hi = mid;
+            }
+        }
+        r = lo;
+    }
+    out.r = r;
+    const PUFitState s = pu_fit(in, out.c, r, idx, dist);
+    out.count = s.count;
+    if (s.valid) {
+        out.m = s.m;
+        out.d = s.d;
+    } else {
+        // No point in the ball (far from the data) or normals cancelling out: use the
+        // tangent plane of the nearest input point, which has the right sign far away.
+        const Neighbor nn = in.tree->nearest(out.c);
+        out.m = (*in.normals)[nn.index];
+        out.d = (*in.points)[nn.index];
+        out.fallback = true;
+    }
+    return out;
+}
+
+/// Whether all 8 corners of cell `cell` lie strictly inside the ball (c, r).
+inline bool pu_cell_inside_ball(const Octree& oct, Index cell, const Vec3& c, Scalar r) {
+    const Vec3 lo = oct.cell_min(cell), hi = oct.cell_max(cell);
+    Scalar far2 = 0;
+    for (int k = 0; k < 3; ++k) {
+        const Scalar a = std::max(std::abs(c[k] - lo[k]), std::abs(c[k] - hi[k]));
+        far2 += a * a;
+    }
+    return far2 < r * r;
+}
+
+/// Squared distance from c to the farthest point of the box [lo, hi].
+inline Scalar pu_box_far_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) {
+    Scalar d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+        const Scalar a = std::max(std::abs(c[k] - lo[k]), std::abs(c[k] - hi[k]));
+        d2 += a * a;
+    }
+    return d2;
+}
+
+/// Octree node classification against the open ball (c, r): 0 disjoint, 2 box
+/// strictly inside, 1 otherwise.
+inline int pu_classify_box(const Vec3& c, Scalar r2, const Vec3& lo, const Vec3& hi);
+
+/// Squared distance from c to the box [lo, hi].
+inline Scalar pu_box_distance_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) {
+    Scalar d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+        const Scalar t = c[k] < lo[k] ? lo[k] - c[k] : (c[k] > hi[k] ? c[k] - hi[k] : Scalar(0));
+        d2 += t * t;
+    }
+    return d2;
+}
+
+inline int pu_classify_box(const Vec3& c, Scalar r2, const Vec3& lo, const Vec3& hi) {
+    if (!(pu_box_distance_squared(c, lo, hi) < r2)) return 0;
+    return pu_box_far_squared(c, lo, hi) < r2 ? 2 : 1;
+}
+
+/// The seeded random order of the candidates (Fisher-Yates on mt19937_64, whose
+/// output sequence is fixed by the standard, so the order is portable).
+inline std::vector<Index> pu_random_order(std::size_t n, std::uint64_t seed) {
+    std::vector<Index> order(n);
+    for (std::size_t i = 0; i < n; ++i) order[i] = i;
+    std::mt19937_64 rng(seed);
+    for (std::size_t i = n; i > 1; --i) {
+        const std::size_t j = static_cast<std::size_t>(rng() % i);
+        std::swap(order[i - 1], order[j]);
+    }
+    return order;
+}
+
+/// Statistics of the cover.
+struct PUCoverStats {
+    std::size_t candidates = 0;       ///< octree cells (= initial candidates)
+    std::size_t evaluated = 0;        ///< supports computed, including discarded speculative ones
+    std::size_t fallback = 0;         ///< supports with no usable fit
+};
+
+/// The cover loop of §2.1.2: pick the next uncovered candidate in random order,
+/// compute its support, remove every candidate whose cell has its 8 corners inside.
+/// Supports are computed speculatively in parallel batches and accepted in order,
+/// so the result is exactly that of the sequential loop, whatever the thread count.
+/// `progress` is called on the calling thread between batches with a fraction in [0,1].
+template <class ProgressFn>
+std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats, ProgressFn&& progress) {
+    const Octree& oct = *in.octree;
+    const std::size_t n = oct.size();
+    stats.candidates = n;
+    const std::vector<Index> order = pu_random_order(n, in.seed);
+    std::vector<char> covered(n, 0);
+    std::vector<PUSupportData> supports;
+    std::size_t remaining = n;
+    std::size_t pos = 0;
+    // Batch size only changes how much speculative work is wasted, never the result:
+    // it shrinks when many candidates of a batch end up covered by earlier ones.
+    std::size_t batch_size = 64;
+    std::vector<Index> batch;
+    std::vector<PUSupportData> fits;
+    while (pos < n) {
+        batch.clear();
+        while (pos < n && batch.size() < batch_size) {
+            if (!covered[order[pos]]) batch.push_back(order[pos]);
+            ++pos;
+        }
+        fits.resize(batch.size());
+        parallel_for(0, batch.size(), [&](std::size_t k) { fits[k] = pu_compute_support(in, batch[k]); }, 1);
+        stats.evaluated += batch.size();
+        std::size_t accepted = 0;
+        for (std::size_t k = 0; k < batch.size(); ++k) {
+            if (covered[batch[k]]) continue;  // covered by an earlier support of this batch
+            ++accepted;
+            const PUSupportData& s = fits[k];
+            // Cells reached through a node inside the ball are inside; others are tested.
+            const Scalar r2 = s.r * s.r;
+            int last_class = 0;
+            oct.visit_cells(
+                [&](const Vec3& lo, const Vec3& hi) { return last_class = pu_classify_box(s.c, r2, lo, hi); },
+                [&](Index c) {
+                    if (!covered[c] && (last_class == 2 || pu_cell_inside_ball(oct, c, s.c, s.r))) {
+                        covered[c] = 1;
+                        --remaining;
+                    }
+                });
+            if (s.fallback) ++stats.fallback;
+            supports.push_back(s);
+        }
+        if (accepted * 4 >= batch.size() * 3)
+            batch_size = std::min<std::size_t>(batch_size * 2, 1024);
+        else if (accepted * 2 < batch.size())
+            batch_size = std::max<std::size_t>(batch_size / 2, 8);
+        progress(1.0 - static_cast<double>(remaining) / static_cast<double>(n));
+    }
+    return supports;
+}
+
+}  // namespace kintsugi::detail
