@@ -62,7 +62,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         params.seed = ctx.common.seed;
         params.fscore_threshold = o->threshold;
         params.control = ctx.control("compare");
-        const kintsugi::DistanceReport r = a.faces.empty() ? kintsugi::compare_points(a.vertices, b, params)
+        const kintsugi::DistanceReport r = a.faces.empty() ? kintsugi::compare_points(kintsugi::PointCloud{a.vertices, a.normals, {}}, b, params)
                                                            : kintsugi::compare(a, b, params);
         ctx.end_progress();
         if (r.status == kintsugi::Status::cancelled) throw std::runtime_error("cancelled");

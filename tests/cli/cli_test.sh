@@ -39,7 +39,7 @@ json_check "info point cloud fields" "j['vertices']==5210 and j['faces']==0 and 
 # ---- errors: exit 1, clear message
 expect 1 "info missing file" -- "$bin" info "$work/does_not_exist.ply"
 stderr_has "missing file message" "kintsugi: error: .*does_not_exist.ply"
-printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n2\n' > "$work/in_truncated.ply"
+printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n4 5 6\n' > "$work/in_truncated.ply"
 expect 1 "truncated ply" -- "$bin" info "$work/in_truncated.ply"
 stderr_has "truncated message" "in_truncated.ply"
 printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n' > "$work/in_badindex.off"
