@@ -246,12 +246,9 @@ TEST_CASE("MeshTopology: non-manifold edge, isolated vertex, repeated index") {
 }
 
 TEST_CASE("MeshTopology: eight.off has the expected edge count (genus 2)") {
-    const auto path = fixtures::shared_data("cgal/meshes/eight.off");
-    if (!std::filesystem::exists(path)) {
-        MESSAGE("skipped: " << path << " not found (../shared/data is for developers and CI)");
-        return;
-    }
-    const IndexedMesh m = fixtures::read_off(path);
+    const auto path = fixtures::test_data("eight.off");  // in the repository
+    REQUIRE(std::filesystem::exists(path));
+    const IndexedMesh m = fixtures::load(path);
     const MeshTopology t(m);
     CHECK(t.num_vertices() == 315);
     CHECK(t.num_faces() == 634);

@@ -8,6 +8,7 @@
 #include <kintsugi/adapters/cgal.hpp>
 #include <kintsugi/adapters/eigen.hpp>
 #include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/io/read.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>
@@ -16,12 +17,10 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <numbers>
 #include <set>
-#include <sstream>
-#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace fixtures {
@@ -121,70 +120,10 @@ inline IndexedMesh concat(IndexedMesh a, const IndexedMesh& b) {
     return a;
 }
 
-// ------------------------------------------------------------------ tiny readers (tests only)
+// ------------------------------------------------------------------ files
 
-/// Reads a triangle OFF file (polygons fan-triangulated).
-inline IndexedMesh read_off(const std::filesystem::path& p) {
-    std::ifstream in(p);
-    if (!in) throw std::runtime_error("cannot open " + p.string());
-    std::string tok;
-    in >> tok;
-    if (tok != "OFF") throw std::runtime_error("not OFF: " + p.string());
-    std::size_t nv = 0, nf = 0, ne = 0;
-    in >> nv >> nf >> ne;
-    IndexedMesh m;
-    m.vertices.resize(nv);
-    for (auto& v : m.vertices) in >> v.x() >> v.y() >> v.z();
-    for (std::size_t f = 0; f < nf; ++f) {
-        std::size_t k = 0;
-        in >> k;
-        std::vector<ks::Index> idx(k);
-        for (auto& i : idx) in >> i;
-        for (std::size_t t = 1; t + 1 < k; ++t) m.faces.push_back({idx[0], idx[t], idx[t + 1]});
-    }
-    if (!in) throw std::runtime_error("truncated OFF: " + p.string());
-    return m;
-}
-
-/// Reads an ASCII PLY whose vertex element starts with x y z and whose faces are lists.
-inline IndexedMesh read_ascii_ply(const std::filesystem::path& p) {
-    std::ifstream in(p);
-    if (!in) throw std::runtime_error("cannot open " + p.string());
-    std::string line;
-    std::size_t nv = 0, nf = 0, vprops = 0;
-    std::string current;
-    while (std::getline(in, line)) {
-        std::istringstream ls(line);
-        std::string w;
-        ls >> w;
-        if (w == "format" && line.find("ascii") == std::string::npos) throw std::runtime_error("not ascii PLY");
-        if (w == "element") {
-            ls >> current;
-            if (current == "vertex") ls >> nv;
-            if (current == "face") ls >> nf;
-        } else if (w == "property" && current == "vertex") {
-            ++vprops;
-        } else if (w == "end_header") {
-            break;
-        }
-    }
-    IndexedMesh m;
-    m.vertices.resize(nv);
-    for (auto& v : m.vertices) {
-        std::getline(in, line);
-        std::istringstream ls(line);
-        ls >> v.x() >> v.y() >> v.z();
-    }
-    for (std::size_t f = 0; f < nf; ++f) {
-        std::size_t k = 0;
-        in >> k;
-        std::vector<ks::Index> idx(k);
-        for (auto& i : idx) in >> i;
-        for (std::size_t t = 1; t + 1 < k; ++t) m.faces.push_back({idx[0], idx[t], idx[t + 1]});
-    }
-    if (!in) throw std::runtime_error("truncated PLY: " + p.string());
-    return m;
-}
+/// Reads a mesh with kintsugi's reader (polygons fan-triangulated).
+inline IndexedMesh load(const std::filesystem::path& p) { return ks::read_mesh(p); }
 
 inline std::filesystem::path shared_data(const std::string& rel) {
     return std::filesystem::path(KINTSUGI_SHARED_DATA_DIR) / rel;

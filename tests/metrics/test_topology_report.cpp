@@ -118,12 +118,9 @@ TEST_CASE_TEMPLATE("topology_report: manifold meshes through every adapter", H, 
         CHECK(r.consistently_oriented);
     }
     SUBCASE("eight.off: genus 2") {
-        const auto path = fixtures::test_data("eight.off");
-        if (!std::filesystem::exists(path)) {
-            MESSAGE("skipped: " << path << " not found");
-            return;
-        }
-        H h(fixtures::read_off(path));
+        const auto path = fixtures::test_data("eight.off");  // in the repository
+        REQUIRE(std::filesystem::exists(path));
+        H h(fixtures::load(path));
         const auto r = ks::topology_report(h.mesh());
         check_closed_manifold(r, 315, 634, 2);
         CHECK(r.euler == -2);
@@ -255,12 +252,9 @@ TEST_CASE("topology_report: bun_zipper_res4.ply (non-manifold decimation, in the
     // Python edge map (see tests/data/metrics/README.md): 453 V, 948 F, 1363 edges,
     // 26 boundary edges, 70 non-manifold edges, 3 pinched vertices, no orientation
     // conflict, Euler 38. (The file itself is shared with other modules' tests.)
-    const auto path = fixtures::test_data("bun_zipper_res4.ply");
-    if (!std::filesystem::exists(path)) {
-        MESSAGE("skipped: " << path << " not found");
-        return;
-    }
-    const IndexedMesh m = fixtures::read_ascii_ply(path);
+    const auto path = fixtures::test_data("bun_zipper_res4.ply");  // in the repository
+    REQUIRE(std::filesystem::exists(path));
+    const IndexedMesh m = fixtures::load(path);
     const auto r = ks::topology_report(m);
     CHECK(r.vertices == 453);
     CHECK(r.faces == 948);
@@ -284,7 +278,7 @@ TEST_CASE("topology_report: Stanford bunny bun_zipper.ply (acceptance)") {
         MESSAGE("skipped: " << path << " not found (../shared/data is for developers and CI)");
         return;
     }
-    const IndexedMesh m = fixtures::read_ascii_ply(path);
+    const IndexedMesh m = fixtures::load(path);
     const auto r = ks::topology_report(m);
     CHECK(r.vertices == 35947);
     CHECK(r.faces == 69451);

@@ -23,6 +23,7 @@
 #include <cstddef>
 #include <numeric>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace kintsugi {
