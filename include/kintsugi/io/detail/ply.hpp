@@ -667,6 +667,9 @@ inline void write_ply(AtomicOutputFile& out, const PlyWriteData& d, bool binary,
     const std::size_t nf = d.faces ? d.faces->size() : 0;
     const std::size_t ne = d.edges ? d.edges->size() : 0;
     const bool wide = nv > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max());
+    if ((nf > 0 || ne > 0) && nv > static_cast<std::size_t>(std::numeric_limits<std::uint32_t>::max()))
+        throw invalid_input("kintsugi: PLY stores indices as 32-bit integers; " + std::to_string(nv) +
+                            " vertices do not fit");
     const char* itype = wide ? "uint" : "int";
 
     out.write("ply\nformat ");
