@@ -12,6 +12,7 @@
 #include <kintsugi/adapters/projection.hpp>
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/io/read.hpp>
 #include <kintsugi/normals/estimate_normals.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -23,11 +24,9 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <numbers>
 #include <random>
-#include <sstream>
 #include <stop_token>
 #include <string>
 #include <vector>
@@ -44,19 +43,12 @@ struct Oriented {
     std::vector<ks::Vec3> points, normals;
 };
 
-// Minimal reader for "x y z nx ny nz" lines (the shared data's .xyz layout).
+// Positions and unit reference normals of an oriented point file, through kintsugi's reader.
 Oriented read_xyz(const fs::path& path) {
-    Oriented o;
-    std::ifstream in(path);
-    REQUIRE_MESSAGE(in.good(), "cannot open " << path);
-    std::string line;
-    while (std::getline(in, line)) {
-        std::istringstream ls(line);
-        double v[6];
-        if (!(ls >> v[0] >> v[1] >> v[2] >> v[3] >> v[4] >> v[5])) continue;
-        o.points.emplace_back(v[0], v[1], v[2]);
-        o.normals.emplace_back(ks::Vec3(v[3], v[4], v[5]).normalized());
-    }
+    const ks::PointCloud c = ks::read_point_cloud(path);
+    REQUIRE_MESSAGE(c.normals.size() == c.points.size(), path << " has no normals");
+    Oriented o{c.points, c.normals};
+    for (auto& n : o.normals) n.normalize();
     return o;
 }
 
@@ -210,6 +202,25 @@ TEST_CASE("without orientation the normals are unit and along the true normal, a
     auto tv = ks::with_normals(tri, tn);
     CHECK(ks::estimate_normals(tv, {.k = 3}).components == 1);
     for (const auto& x : tn) CHECK((x - ks::Vec3(0, 0, 1)).norm() < 1e-12);  // +z: the seed rule
+}
+
+TEST_CASE("degenerate neighbourhoods (collinear, coincident points) still give finite unit normals") {
+    std::vector<ks::Vec3> pts;
+    for (int i = 0; i < 20; ++i) pts.emplace_back(0.1 * i, 0.2 * i, -0.05 * i);  // a line
+    for (int i = 0; i < 10; ++i) pts.emplace_back(5, 5, 5);                        // one place, ten times
+    for (auto method : {ks::NormalMethod::pca, ks::NormalMethod::jet}) {
+        std::vector<ks::Vec3> nrm;
+        auto v = ks::with_normals(pts, nrm);
+        const auto r = ks::estimate_normals(v, {.k = 6, .method = method});
+        CHECK(r.components == 2);
+        for (std::size_t i = 0; i < nrm.size(); ++i) {
+            REQUIRE(nrm[i].allFinite());
+            CHECK(std::abs(nrm[i].norm() - 1.0) < 1e-9);
+        }
+        // On the line, any normal is perpendicular to it.
+        const ks::Vec3 dir = ks::Vec3(0.1, 0.2, -0.05).normalized();
+        for (std::size_t i = 0; i < 20; ++i) CHECK(std::abs(nrm[i].dot(dir)) < 1e-6);
+    }
 }
 
 TEST_CASE("every kNN-graph component is oriented, each by its top-most point (CGAL orients only one)") {
