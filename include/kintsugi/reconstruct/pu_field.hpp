@@ -41,6 +41,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -98,7 +100,9 @@ struct PUFieldData {
     };
     std::vector<Eval> eval;
     std::vector<PUSupport> supports;  ///< caller's frame
-    // For each octree cell, the supports whose ball meets its box (CSR, sorted).
+    // Uniform grid over the unit cube (G^3 cells): for each grid cell, the supports
+    // whose ball meets it (CSR, sorted by support index). G follows the median radius.
+    int grid = 1;
     std::vector<std::size_t> cell_offsets;
     std::vector<std::uint32_t> cell_supports;
 };
@@ -217,8 +221,13 @@ private:
         grad = Vec3::Constant(nan);
         if (!data_ || data_->eval.empty()) return nan;
         const Vec3 u = to_unit(x);
-        const Index cell = data_->octree.locate(u);
-        if (cell == Octree::npos) return nan;
+        if (!u.allFinite() || (u.array().abs() > Scalar(0.5)).any()) return nan;
+        const int G = data_->grid;
+        std::size_t cell = 0;
+        for (int k = 2; k >= 0; --k) {
+            const int i = std::min(G - 1, static_cast<int>((u[k] + Scalar(0.5)) * G));
+            cell = cell * static_cast<std::size_t>(G) + static_cast<std::size_t>(std::max(0, i));
+        }
         Scalar W = 0, F = 0;
         Vec3 dW = Vec3::Zero(), dF = Vec3::Zero();
         const auto* ids = data_->cell_supports.data();
@@ -382,33 +391,55 @@ inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3
             data->supports[i] = PUSupport{data->center + s.c * inv_scale, s.r * inv_scale, s.m,
                                           data->center + s.d * inv_scale, s.count, static_cast<int>(s.level)};
         }
-        // Cell -> supports whose ball meets the cell: per block of supports, in
+        // Grid cell -> supports whose ball meets the cell: per block of supports, in
         // parallel; then a counting sort by cell in support order (deterministic).
-        const Octree& oct = data->octree;
+        {
+            std::vector<Scalar> radii(sup.size());
+            for (std::size_t i = 0; i < sup.size(); ++i) radii[i] = sup[i].r;
+            std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2), radii.end());
+            const Scalar r_med = radii[radii.size() / 2];
+            // grid cell side ~ the median radius, G a power of two in [4, 128]
+            int G = 4;
+            while (G < 128 && Scalar(1) / (2 * G) > r_med) G *= 2;
+            data->grid = G;
+        }
+        const int G = data->grid;
+        const std::size_t n_grid = static_cast<std::size_t>(G) * G * G;
         const std::size_t block = 2048;
         const std::size_t n_blocks = (sup.size() + block - 1) / block;
         std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> pairs(n_blocks);
         const std::size_t blocks_per_round = 16;
+        const Scalar h = Scalar(1) / G;
         for (std::size_t b0 = 0; b0 < n_blocks; b0 += blocks_per_round) {
             const std::size_t b1 = std::min(n_blocks, b0 + blocks_per_round);
             parallel_for(b0, b1, [&](std::size_t b) {
                 auto& out = pairs[b];
                 for (std::size_t i = b * block, e = std::min(sup.size(), (b + 1) * block); i < e; ++i) {
                     const auto& s = data->eval[i];
-                    oct.visit_cells(
-                        [&](const Vec3& lo, const Vec3& hi) { return detail::pu_classify_box(s.c, s.r2, lo, hi); },
-                        [&](Index c) { out.push_back({static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(i)}); });
+                    std::array<int, 3> lo{}, hi{};
+                    for (int k = 0; k < 3; ++k) {
+                        lo[k] = std::clamp(static_cast<int>(std::floor((s.c[k] - s.r + Scalar(0.5)) * G)), 0, G - 1);
+                        hi[k] = std::clamp(static_cast<int>(std::floor((s.c[k] + s.r + Scalar(0.5)) * G)), 0, G - 1);
+                    }
+                    for (int z = lo[2]; z <= hi[2]; ++z)
+                        for (int y = lo[1]; y <= hi[1]; ++y)
+                            for (int x = lo[0]; x <= hi[0]; ++x) {
+                                const Vec3 bl(x * h - Scalar(0.5), y * h - Scalar(0.5), z * h - Scalar(0.5));
+                                if (detail::pu_box_distance_squared(s.c, bl, bl + Vec3::Constant(h)) >= s.r2) continue;
+                                out.push_back({static_cast<std::uint32_t>((static_cast<std::size_t>(z) * G + y) * G + x),
+                                               static_cast<std::uint32_t>(i)});
+                            }
                 }
             }, 1);
             progress.update(0.8 * static_cast<double>(b1) / static_cast<double>(n_blocks));
         }
-        data->cell_offsets.assign(oct.size() + 1, 0);
+        data->cell_offsets.assign(n_grid + 1, 0);
         std::size_t total = 0;
         for (const auto& v : pairs) {
             total += v.size();
             for (const auto& pr : v) ++data->cell_offsets[pr.first + 1];
         }
-        for (std::size_t c = 0; c < oct.size(); ++c) data->cell_offsets[c + 1] += data->cell_offsets[c];
+        for (std::size_t c = 0; c < n_grid; ++c) data->cell_offsets[c + 1] += data->cell_offsets[c];
         data->cell_supports.resize(total);
         {
             std::vector<std::size_t> fill(data->cell_offsets.begin(), data->cell_offsets.end() - 1);

@@ -292,11 +292,67 @@ public:
         descend(0, 0, 0, cells_.size(), classify, visit);
     }
 
+    /// Same as visit_cells(classify, visit), restricted to the cells that meet the box
+    /// [lo, hi] (input units): the descent starts at the at most 8 nodes of the
+    /// level whose side fits the box, instead of the root, which is much faster for
+    /// boxes that are small compared with the cube. Cells are visited once, in Morton order.
+    template <class Classify, class Visit>
+    void visit_cells(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit) const {
+        if (cells_.empty()) return;
+        const Scalar n = static_cast<Scalar>(std::uint64_t{1} << max_level_);
+        std::array<std::int64_t, 3> a{}, b{};
+        for (int k = 0; k < 3; ++k) {
+            const Scalar tl = std::floor((lo[k] - cube_min_[k]) / unit_);
+            const Scalar th = std::floor((hi[k] - cube_min_[k]) / unit_);
+            if (!(th >= 0) || !(tl < n)) return;  // disjoint from the cube (or NaN)
+            a[k] = tl <= 0 ? 0 : static_cast<std::int64_t>(tl);
+            b[k] = th >= n - 1 ? static_cast<std::int64_t>(n) - 1 : static_cast<std::int64_t>(th);
+        }
+        // Deepest level m whose nodes are at least as large as the box's extent.
+        const std::int64_t ext = std::max({b[0] - a[0], b[1] - a[1], b[2] - a[2]}) + 1;
+        int m = max_level_;
+        while (m > 0 && (std::int64_t{1} << (max_level_ - m)) < ext) --m;
+        const int sh = max_level_ - m;
+        Index last_visited = npos;
+        auto visit_once = [&](Index c) {
+            // a coarse cell can contain several start nodes: visit it once
+            if (c == last_visited) return;
+            last_visited = c;
+            visit(c);
+        };
+        auto classify_ref = [&](const Vec3& l, const Vec3& h) { return classify(l, h); };
+        // Start nodes in Morton order (their codes at level m, sorted).
+        std::array<std::uint64_t, 8> starts{};
+        int ns = 0;
+        for (std::int64_t z = a[2] >> sh; z <= (b[2] >> sh); ++z)
+            for (std::int64_t y = a[1] >> sh; y <= (b[1] >> sh); ++y)
+                for (std::int64_t x = a[0] >> sh; x <= (b[0] >> sh); ++x)
+                    starts[static_cast<std::size_t>(ns++)] =
+                        detail::morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                              static_cast<std::uint32_t>(z)) << (3 * sh);
+        std::sort(starts.begin(), starts.begin() + ns);
+        for (int i = 0; i < ns; ++i) {
+            const std::uint64_t code = starts[static_cast<std::size_t>(i)];
+            const Index first = locate_code(code);
+            if (cells_[first].level <= static_cast<std::uint32_t>(m)) {
+                // the node lies inside one cell
+                if (first == last_visited) continue;
+                const Vec3 cl = cell_min(first);
+                if (static_cast<int>(classify(cl, Vec3(cl + Vec3::Constant(cell_side(first))))) != 0) visit_once(first);
+                continue;
+            }
+            const std::uint64_t end = code + (std::uint64_t{1} << (3 * sh));
+            const auto last = static_cast<Index>(
+                std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(first), codes_.end(), end) - codes_.begin());
+            descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once);
+        }
+    }
+
     /// The cells whose closed box intersects the closed box [lo, hi] (input units),
     /// in Morton order.
     void cells_in_box(const Vec3& lo, const Vec3& hi, std::vector<Index>& out) const {
         out.clear();
-        visit_cells(
+        visit_cells(lo, hi,
             [&](const Vec3& a, const Vec3& b) { return (a.array() <= hi.array()).all() && (lo.array() <= b.array()).all(); },
             [&](Index c) { out.push_back(c); });
     }
@@ -489,11 +545,17 @@ private:
     template <class Classify, class Visit>
     void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Classify& classify,
                  Visit& visit) const {
-        // Node (level, code in finest units) covers cells [first, last).
         const auto a = detail::morton_decode(code);
-        const Scalar s = side_ / static_cast<Scalar>(1u << level);
-        const Vec3 lo = cube_min_ + unit_ * Vec3(a[0], a[1], a[2]);
-        const int cls = static_cast<int>(classify(lo, Vec3(lo + Vec3::Constant(s))));
+        descend_xyz(level, code, a[0], a[1], a[2], first, last, classify, visit);
+    }
+
+    // Node (level, code and minimum corner (x, y, z) in finest units) covers cells [first, last).
+    template <class Classify, class Visit>
+    void descend_xyz(std::uint32_t level, std::uint64_t code, std::uint32_t x, std::uint32_t y, std::uint32_t z,
+                     Index first, Index last, Classify& classify, Visit& visit) const {
+        const Scalar s = unit_ * static_cast<Scalar>(std::uint32_t{1} << (max_level_ - static_cast<int>(level)));
+        const Vec3 lo(cube_min_[0] + unit_ * x, cube_min_[1] + unit_ * y, cube_min_[2] + unit_ * z);
+        const int cls = static_cast<int>(classify(lo, Vec3(lo[0] + s, lo[1] + s, lo[2] + s)));
         if (cls == 0) return;
         if (cells_[first].level <= level) {
             visit(first);
@@ -504,9 +566,10 @@ private:
             return;
         }
         const int shift = 3 * (max_level_ - static_cast<int>(level) - 1);
+        const std::uint32_t half = std::uint32_t{1} << (max_level_ - static_cast<int>(level) - 1);
         Index b = first;
-        for (std::uint64_t k = 0; k < 8; ++k) {
-            const std::uint64_t child_end = code + ((k + 1) << shift);
+        for (std::uint32_t k = 0; k < 8; ++k) {
+            const std::uint64_t child_end = code + (std::uint64_t{k + 1} << shift);
             Index e = b;
             if (last - b <= 32) {
                 while (e < last && codes_[e] < child_end) ++e;
@@ -515,7 +578,9 @@ private:
                                                         codes_.begin() + static_cast<std::ptrdiff_t>(last), child_end) -
                                        codes_.begin());
             }
-            if (e > b) descend(level + 1, code + (k << shift), b, e, classify, visit);
+            if (e > b)
+                descend_xyz(level + 1, code + (std::uint64_t{k} << shift), x + ((k & 1) ? half : 0),
+                            y + ((k & 2) ? half : 0), z + ((k & 4) ? half : 0), b, e, classify, visit);
             b = e;
         }
     }

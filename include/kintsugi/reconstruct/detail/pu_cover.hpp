@@ -265,6 +265,7 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
     std::size_t batch_size = 64;
     std::vector<Index> batch;
     std::vector<PUSupportData> fits;
+    std::vector<std::vector<Index>> inside;  // per fit: the cells with 8 corners in its ball
     while (pos < n) {
         batch.clear();
         while (pos < n && batch.size() < batch_size) {
@@ -272,24 +273,35 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             ++pos;
         }
         fits.resize(batch.size());
-        parallel_for(0, batch.size(), [&](std::size_t k) { fits[k] = pu_compute_support(in, batch[k]); }, 1);
+        inside.resize(batch.size());
+        // Speculative and parallel: the support and the cells it would cover are pure
+        // functions of the candidate cell.
+        parallel_for(0, batch.size(), [&](std::size_t k) {
+            fits[k] = pu_compute_support(in, batch[k]);
+            const PUSupportData& s = fits[k];
+            auto& list = inside[k];
+            list.clear();
+            const Scalar r2 = s.r * s.r;
+            int last_class = 0;
+            // Cells reached through a node inside the ball are inside; others are tested.
+            oct.visit_cells(
+                s.c - Vec3::Constant(s.r), s.c + Vec3::Constant(s.r),
+                [&](const Vec3& lo, const Vec3& hi) { return last_class = pu_classify_box(s.c, r2, lo, hi); },
+                [&](Index c) {
+                    if (!covered[c] && (last_class == 2 || pu_cell_inside_ball(oct, c, s.c, s.r))) list.push_back(c);
+                });
+        }, 1);
         stats.evaluated += batch.size();
         std::size_t accepted = 0;
         for (std::size_t k = 0; k < batch.size(); ++k) {
             if (covered[batch[k]]) continue;  // covered by an earlier support of this batch
             ++accepted;
             const PUSupportData& s = fits[k];
-            // Cells reached through a node inside the ball are inside; others are tested.
-            const Scalar r2 = s.r * s.r;
-            int last_class = 0;
-            oct.visit_cells(
-                [&](const Vec3& lo, const Vec3& hi) { return last_class = pu_classify_box(s.c, r2, lo, hi); },
-                [&](Index c) {
-                    if (!covered[c] && (last_class == 2 || pu_cell_inside_ball(oct, c, s.c, s.r))) {
-                        covered[c] = 1;
-                        --remaining;
-                    }
-                });
+            for (const Index c : inside[k])
+                if (!covered[c]) {
+                    covered[c] = 1;
+                    --remaining;
+                }
             if (s.fallback) ++stats.fallback;
             supports.push_back(s);
         }
