@@ -127,14 +127,26 @@ public:
     TriangleDistance(const TriangleDistance&) = delete;
     TriangleDistance& operator=(const TriangleDistance&) = delete;
 
-    [[nodiscard]] Hit closest(const Vec3& q) const {
-        const K::Point_3 p(q.x(), q.y(), q.z());
-        const auto [c, it] = tree_.closest_point_and_primitive(p);
-        Hit h;
-        h.closest = Vec3(c.x(), c.y(), c.z());
-        h.distance = (h.closest - q).norm();
-        h.face = face_of_[static_cast<std::size_t>(it - triangles_.cbegin())];
-        return h;
+    [[nodiscard]] Hit closest(const Vec3& q) const { return closest_run(&q, 1).front(); }
+
+    /// Closest points of a run of queries, in order. Each query starts from the previous
+    /// answer (CGAL's hint), which is much faster when consecutive queries are close;
+    /// the answers do not depend on it except for the choice among equidistant faces.
+    void closest_run(const Vec3* q, std::size_t n, Hit* out) const {
+        typename Tree::Point_and_primitive_id hint;
+        for (std::size_t i = 0; i < n; ++i) {
+            const K::Point_3 p(q[i].x(), q[i].y(), q[i].z());
+            hint = i == 0 ? tree_.closest_point_and_primitive(p) : tree_.closest_point_and_primitive(p, hint);
+            const K::Point_3& c = hint.first;
+            out[i].closest = Vec3(c.x(), c.y(), c.z());
+            out[i].distance = (out[i].closest - q[i]).norm();
+            out[i].face = face_of_[static_cast<std::size_t>(hint.second - triangles_.cbegin())];
+        }
+    }
+    [[nodiscard]] std::vector<Hit> closest_run(const Vec3* q, std::size_t n) const {
+        std::vector<Hit> out(n);
+        closest_run(q, n, out.data());
+        return out;
     }
 
 private:
@@ -228,6 +240,66 @@ inline SurfaceSamples sample_surface(const IndexedMesh& m, std::size_t n, std::u
     return s;
 }
 
+/// Morton (Z-order) rank of each point in its bounding box, 21 bits per axis; the
+/// order is (code, index), so it is deterministic.
+inline std::vector<std::size_t> morton_order(const std::vector<Vec3>& q) {
+    BoundingBox box;
+    for (const Vec3& p : q) box.extend(p);
+    const Vec3 lo = box.min, ext = box.extent();
+    const double scale = (1u << 21) - 1;
+    auto spread = [](std::uint64_t x) {  // 21 bits -> every third bit
+        x &= 0x1fffff;
+        x = (x | x << 32) & 0x1f00000000ffffULL;
+        x = (x | x << 16) & 0x1f0000ff0000ffULL;
+        x = (x | x << 8) & 0x100f00f00f00f00fULL;
+        x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+        x = (x | x << 2) & 0x1249249249249249ULL;
+        return x;
+    };
+    std::vector<std::uint64_t> code(q.size());
+    parallel_for(0, q.size(), [&](std::size_t i) {
+        std::uint64_t c = 0;
+        for (int k = 0; k < 3; ++k) {
+            const double t = ext[k] > 0 ? (q[i][k] - lo[k]) / ext[k] : 0.0;
+            c |= spread(static_cast<std::uint64_t>(std::clamp(t, 0.0, 1.0) * scale)) << k;
+        }
+        code[i] = c;
+    });
+    std::vector<std::size_t> order(q.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return code[a] < code[b] || (code[a] == code[b] && a < b); });
+    return order;
+}
+
+/// Closest points of all queries. As CGAL's own Hausdorff code does, the queries are
+/// put in space-filling-curve order and each starts from the previous answer (see
+/// TriangleDistance::closest_run), in fixed runs of 256 run in parallel; progress is
+/// reported between blocks. The runs do not depend on the thread count, so neither do
+/// the results.
+inline std::vector<TriangleDistance::Hit> closest_points(const TriangleDistance& tree, const std::vector<Vec3>& q,
+                                                         Progress* progress) {
+    constexpr std::size_t run = 256, block = 64 * run;
+    const std::vector<std::size_t> order = morton_order(q);
+    std::vector<Vec3> sorted(q.size());
+    for (std::size_t i = 0; i < q.size(); ++i) sorted[i] = q[order[i]];
+    std::vector<TriangleDistance::Hit> hits(q.size());
+    for (std::size_t b = 0; b < q.size(); b += block) {
+        if (progress) progress->update(static_cast<double>(b) / static_cast<double>(q.size()));
+        const std::size_t e = std::min(q.size(), b + block);
+        parallel_for(
+            0, (e - b + run - 1) / run,
+            [&](std::size_t c) {
+                const std::size_t first = b + c * run, last = std::min(e, first + run);
+                tree.closest_run(sorted.data() + first, last - first, hits.data() + first);
+            },
+            1);
+    }
+    std::vector<TriangleDistance::Hit> out(q.size());
+    for (std::size_t i = 0; i < q.size(); ++i) out[order[i]] = hits[i];
+    return out;
+}
+
 /// Unit face normals (zero for degenerate faces).
 inline std::vector<Vec3> unit_face_normals(const IndexedMesh& m) {
     std::vector<Vec3> n(m.faces.size());
@@ -311,18 +383,15 @@ inline DistanceReport compare_meshes(const IndexedMesh& a, const IndexedMesh& b,
 
         auto directed = [&](const SurfaceSamples& s, const std::vector<Vec3>& verts, const std::vector<Vec3>& ns,
                             const std::vector<Vec3>& nt, const TriangleDistance& target, double& normal_sum) {
-            std::vector<double> d(s.points.size()), dots(s.points.size());
-            blocked_parallel_for(s.points.size(), progress, [&](std::size_t i) {
-                const auto h = target.closest(s.points[i]);
-                d[i] = h.distance;
-                dots[i] = std::abs(ns[s.faces[i]].dot(nt[h.face]));
-            });
-            std::vector<double> dv(verts.size());
-            parallel_for(0, verts.size(), [&](std::size_t i) { dv[i] = target.closest(verts[i]).distance; });
-            double vmax = 0;
-            for (double x : dv) vmax = std::max(vmax, x);
+            const auto hits = closest_points(target, s.points, &progress);
+            std::vector<double> d(hits.size());
             normal_sum = 0;
-            for (double x : dots) normal_sum += x;
+            for (std::size_t i = 0; i < hits.size(); ++i) {
+                d[i] = hits[i].distance;
+                normal_sum += std::abs(ns[s.faces[i]].dot(nt[hits[i].face]));
+            }
+            double vmax = 0;
+            for (const auto& h : closest_points(target, verts, nullptr)) vmax = std::max(vmax, h.distance);
             return summarize(d, vmax, tau);
         };
         double nab = 0, nba = 0;
@@ -374,12 +443,12 @@ inline DistanceReport compare_points_impl(const std::vector<Vec3>& pts, const st
         const KdTree kd(pts, 0);
 
         progress.stage("a_to_b", 0.2, 0.6);
+        const auto hits = closest_points(tb, pts, &progress);
         std::vector<double> d(pts.size()), dots(with_normals ? pts.size() : 0);
-        blocked_parallel_for(pts.size(), progress, [&](std::size_t i) {
-            const auto h = tb.closest(pts[i]);
-            d[i] = h.distance;
-            if (with_normals) dots[i] = std::abs(na[i].dot(nb[h.face]));
-        });
+        for (std::size_t i = 0; i < hits.size(); ++i) {
+            d[i] = hits[i].distance;
+            if (with_normals) dots[i] = std::abs(na[i].dot(nb[hits[i].face]));
+        }
         r.a_to_b = summarize(d, 0.0, tau);
 
         progress.stage("b_to_a", 0.6, 1.0);
@@ -496,7 +565,8 @@ template <PointSet P, TriangleMesh M>
     std::vector<Scalar> out(pts.size());
     if (pts.empty()) return out;
     const detail::TriangleDistance tree(m);
-    parallel_for(0, pts.size(), [&](std::size_t i) { out[i] = tree.closest(pts[i]).distance; }, 64);
+    const auto hits = detail::closest_points(tree, pts, nullptr);
+    for (std::size_t i = 0; i < pts.size(); ++i) out[i] = hits[i].distance;
     return out;
 }
 
