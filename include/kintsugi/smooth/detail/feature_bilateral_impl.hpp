@@ -1,0 +1,395 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file feature_bilateral_impl.hpp
+/// @brief Internal machinery of smooth/feature_bilateral.hpp: normal voting tensor,
+/// sharp-edge extraction and the four bilateral filters, on the internal layout
+/// (vector<Vec3> positions + vector<Face>). Not part of the API.
+
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/error.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/topology.hpp>
+#include <kintsugi/spatial/kd_tree.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace kintsugi::detail::fbs {
+
+/// Runs body(i) for i in [0, n) in parallel, in ~20 blocks, reporting progress
+/// (local fraction from `from` to `to`) and checking cancellation between blocks on
+/// the calling thread.
+template <class Body>
+void blocked_for(Progress& progress, std::size_t n, double from, double to, Body&& body) {
+    const std::size_t blocks = std::clamp<std::size_t>(n / 4096, 1, 20);
+    for (std::size_t b = 0; b < blocks; ++b) {
+        const std::size_t first = n * b / blocks, last = n * (b + 1) / blocks;
+        parallel_for(first, last, body, 64);
+        progress.update(from + (to - from) * static_cast<double>(b + 1) / static_cast<double>(blocks));
+    }
+}
+
+/// Unit normal (zero for a degenerate face), area and centroid of every face.
+struct FaceGeometry {
+    std::vector<Vec3> normal, centroid;
+    std::vector<Scalar> area;
+};
+
+inline void compute_face_geometry(const std::vector<Vec3>& V, const std::vector<Face>& F, FaceGeometry& g) {
+    const std::size_t nf = F.size();
+    g.normal.resize(nf);
+    g.centroid.resize(nf);
+    g.area.resize(nf);
+    parallel_for(0, nf, [&](std::size_t f) {
+        const Vec3& a = V[F[f][0]];
+        const Vec3& b = V[F[f][1]];
+        const Vec3& c = V[F[f][2]];
+        const Vec3 cr = (b - a).cross(c - a);
+        const Scalar len = cr.norm();
+        // A face whose cross product is below round-off of its size is degenerate:
+        // zero normal and zero area, so it never weighs in any filter.
+        const Scalar scale = std::max({(b - a).squaredNorm(), (c - a).squaredNorm(), (c - b).squaredNorm()});
+        const bool degenerate = !(len > 1e-14 * scale) || !std::isfinite(len);
+        g.normal[f] = degenerate ? Vec3::Zero() : Vec3(cr / len);
+        g.area[f] = degenerate ? Scalar(0) : len / 2;
+        g.centroid[f] = (a + b + c) / 3;
+    }, 1024);
+}
+
+/// Mean length of the unique edges (self edges of repeated-index faces excluded).
+inline Scalar mean_edge_length(const std::vector<Vec3>& V, const MeshTopology& topo) {
+    const auto& E = topo.edges();
+    const auto sum = parallel_reduce(
+        0, E.size(), std::pair<Scalar, std::size_t>{0, 0},
+        [&](std::size_t first, std::size_t last, std::pair<Scalar, std::size_t> acc) {
+            for (std::size_t e = first; e < last; ++e)
+                if (E[e][0] != E[e][1]) {
+                    acc.first += (V[E[e][0]] - V[E[e][1]]).norm();
+                    ++acc.second;
+                }
+            return acc;
+        },
+        [](std::pair<Scalar, std::size_t> x, std::pair<Scalar, std::size_t> y) {
+            return std::pair<Scalar, std::size_t>{x.first + y.first, x.second + y.second};
+        });
+    return sum.second ? sum.first / static_cast<Scalar>(sum.second) : Scalar(0);
+}
+
+/// Neighbours of c in the axis-aligned cube of half side h: a radius query of radius
+/// h·√3 through the kd-tree, then the cube test. Sorted by distance, ties by index.
+inline void cube_query(const KdTree& tree, const Vec3& c, Scalar h, std::vector<Neighbor>& out) {
+    tree.radius_search_squared(c, 3 * h * h, out);
+    std::erase_if(out, [&](const Neighbor& n) { return (tree.point(n.index) - c).cwiseAbs().maxCoeff() > h; });
+}
+
+/// Gaussian exp(-x²/(2σ²)) (unnormalised: the filters normalise by k_r).
+inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma * sigma)); }
+
+/// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
+/// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
+/// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°).
+/// Applied `iterations` times to `normals` with the positions fixed: the cube
+/// neighbourhoods and their spatial weights a_t*·f are found once (two kd-tree
+/// passes, CSR arrays linear in the mesh) and reused by every pass.
+inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const KdTree& tree, std::vector<Vec3> normals,
+                                        Scalar scale, std::size_t iterations, Progress& progress, double from,
+                                        double to) {
+    const std::size_t nf = normals.size();
+    if (iterations == 0 || nf == 0) return normals;
+    const Scalar s_mf = scale / 2, s_mg = 0.6, h = scale;
+    const double q1 = from + (to - from) * 0.15, q2 = from + (to - from) * 0.3;
+    std::vector<std::size_t> offset(nf + 1, 0);
+    blocked_for(progress, nf, from, q1, [&](std::size_t t) {
+        thread_local std::vector<Neighbor> nb;
+        if (g.area[t] == 0) return;
+        cube_query(tree, g.centroid[t], h, nb);
+        std::size_t n = 0;
+        for (const Neighbor& q : nb) n += g.area[q.index] > 0;
+        offset[t + 1] = n;
+    });
+    for (std::size_t t = 0; t < nf; ++t) offset[t + 1] += offset[t];
+    std::vector<std::uint32_t> index(offset[nf]);
+    std::vector<float> weight(offset[nf]);
+    blocked_for(progress, nf, q1, q2, [&](std::size_t t) {
+        thread_local std::vector<Neighbor> nb;
+        if (g.area[t] == 0) return;
+        cube_query(tree, g.centroid[t], h, nb);
+        std::size_t k = offset[t];
+        for (const Neighbor& q : nb)
+            if (g.area[q.index] > 0) {
+                index[k] = static_cast<std::uint32_t>(q.index);
+                weight[k++] = static_cast<float>(g.area[q.index] * gauss(q.squared_distance, s_mf));
+            }
+    });
+    std::vector<Vec3> cur;
+    for (std::size_t k = 0; k < iterations; ++k) {
+        cur.swap(normals);
+        normals.resize(nf);
+        const double a0 = q2 + (to - q2) * static_cast<double>(k) / static_cast<double>(iterations);
+        const double a1 = q2 + (to - q2) * static_cast<double>(k + 1) / static_cast<double>(iterations);
+        blocked_for(progress, nf, a0, a1, [&](std::size_t t) {
+            normals[t] = cur[t];
+            Vec3 acc = Vec3::Zero();
+            for (std::size_t j = offset[t]; j < offset[t + 1]; ++j) {
+                const Vec3& nq = cur[index[j]];
+                const Scalar Y2 = (cur[t] - nq).squaredNorm();
+                if (Y2 > 1) continue;  // across a sharp edge: g = 0
+                acc += (static_cast<Scalar>(weight[j]) * gauss(Y2, s_mg)) * nq;
+            }
+            const Scalar n = acc.norm();
+            if (n > 0 && std::isfinite(n)) normals[t] = acc / n;
+        });
+    }
+    return normals;
+}
+
+// ------------------------------------------------------------------ features
+
+struct FeatureData {
+    std::vector<Scalar> strength;              // s_i
+    std::vector<Vec3> eigenvalues;             // (v1, v2, v3), v1 >= v2 >= v3, sum 1
+    std::vector<std::array<Vec3, 3>> eigenvectors;  // e1, e2, e3
+    std::vector<std::array<Index, 2>> sharp_edges;  // vertex pairs, a < b, sorted
+    std::size_t candidate_vertices = 0;
+};
+
+struct FeatureSettings {
+    Scalar cube = 3;             // voting cube side, in mean edge lengths
+    Scalar threshold = 0.251;    // edge-strength threshold
+    Scalar direction = 0.9;      // |d_e · e3| threshold
+    bool boundary_edges = false; // boundary edges may be sharp
+    std::size_t prefilter_iterations = 0;  // filter-3 passes on the normals before voting
+    Scalar prefilter_scale = 2;            // their c
+    bool crease_test = false;              // the edge's two (filtered) normals must differ by the threshold angle
+};
+
+/// Normal voting tensor of every vertex (Sun et al. 2002), its eigen-analysis, the
+/// edge strength s_i = v2 / v1 and the sharp edges.
+inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
+                                   const FaceGeometry& geo, Scalar mean_edge, const FeatureSettings& st,
+                                   Progress& progress, double from, double to) {
+    const std::size_t nv = V.size();
+    FeatureData out;
+    out.strength.assign(nv, 0);
+    out.eigenvalues.assign(nv, Vec3::Zero());
+    out.eigenvectors.assign(nv, {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()});
+
+    const Scalar h = st.cube * mean_edge / 2;  // half side of the voting cube
+    const Scalar falloff = h;                  // distance decay of the votes (see header)
+    const KdTree tree(geo.centroid, 0);
+    const double mid = from + (to - from) * (st.prefilter_iterations ? 0.5 : 0.0);
+    const std::vector<Vec3> N = st.prefilter_iterations
+        ? filter_normals(geo, tree, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid)
+        : geo.normal;
+    const auto& A = geo.area;
+    blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
+        thread_local std::vector<Neighbor> nb;
+        cube_query(tree, V[v], h, nb);
+        Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+        for (const Neighbor& q : nb) {
+            const Scalar w = A[q.index] * std::exp(-std::sqrt(q.squared_distance) / falloff);
+            T.noalias() += w * N[q.index] * N[q.index].transpose();
+        }
+        const Scalar tr = T.trace();
+        if (!(tr > 0) || !std::isfinite(tr)) return;  // no face around: not a feature
+        T /= tr;
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+        es.computeDirect(T);
+        const Vec3 ev = es.eigenvalues();  // increasing
+        const Scalar v1 = std::max(ev[2], Scalar(0)), v2 = std::clamp(ev[1], Scalar(0), v1),
+                     v3 = std::clamp(ev[0], Scalar(0), v2);
+        out.eigenvalues[v] = Vec3(v1, v2, v3);
+        out.eigenvectors[v] = {Vec3(es.eigenvectors().col(2)), Vec3(es.eigenvectors().col(1)),
+                               Vec3(es.eigenvectors().col(0))};
+        out.strength[v] = v1 > 0 ? v2 / v1 : Scalar(0);
+    });
+
+    // Sharp edges: an edge at a candidate vertex (s >= threshold) whose direction is
+    // aligned with that vertex's e3 (the crease direction).
+    const auto& E = topo.edges();
+    std::vector<unsigned char> sharp(E.size(), 0);
+    // The crease angle implied by the threshold: s = tan²(φ/2) for a symmetric edge.
+    const Scalar crease_cos = std::cos(2 * std::atan(std::sqrt(st.threshold)));
+    parallel_for(0, E.size(), [&](std::size_t e) {
+        const Index a = E[e][0], b = E[e][1];
+        if (a == b) return;
+        const auto ef = topo.edge_faces(e);
+        if (!st.boundary_edges && ef.size() < 2) return;
+        if (st.crease_test && ef.size() >= 2) {
+            Scalar min_dot = 1;
+            for (std::size_t i = 0; i < ef.size(); ++i)
+                for (std::size_t j = i + 1; j < ef.size(); ++j) min_dot = std::min(min_dot, N[ef[i]].dot(N[ef[j]]));
+            if (min_dot > crease_cos) return;
+        }
+        Vec3 d = V[b] - V[a];
+        const Scalar len = d.norm();
+        if (!(len > 0)) return;
+        d /= len;
+        for (Index v : {a, b})
+            if (out.strength[v] >= st.threshold &&
+                (st.crease_test || std::abs(d.dot(out.eigenvectors[v][2])) >= st.direction)) {
+                sharp[e] = 1;
+                return;
+            }
+    }, 4096);
+    for (std::size_t v = 0; v < nv; ++v) out.candidate_vertices += out.strength[v] >= st.threshold;
+    for (std::size_t e = 0; e < E.size(); ++e)
+        if (sharp[e]) out.sharp_edges.push_back(E[e]);
+    progress.update(to);
+    return out;
+}
+
+// ------------------------------------------------------------------ filters
+
+struct FilterSettings {
+    Scalar a = 2, b = 0.1, c = 2, d = 0.1;
+    std::size_t edge_iterations = 2, face_iterations = 2;
+    bool features = true;
+    std::size_t normal_iterations = 1;
+    std::size_t vertex_iterations = 1;
+};
+
+/// Filters 1) and 2): sharp-edge directions, then sharp-edge vertices. Moves only the
+/// vertices of sharp edges. One call = one iteration.
+inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<Index, 2>>& edges,
+                           const std::vector<Index>& edge_vertices, Scalar L, const FilterSettings& st,
+                           Progress& progress, double from, double to) {
+    const std::size_t ne = edges.size();
+    if (ne == 0) return;
+    std::vector<Vec3> c(ne), dir(ne), dir_f(ne);
+    std::vector<Scalar> len(ne);
+    for (std::size_t e = 0; e < ne; ++e) {
+        const Vec3 p = V[edges[e][0]], q = V[edges[e][1]];
+        c[e] = (p + q) / 2;
+        len[e] = (q - p).norm();
+        dir[e] = len[e] > 0 ? Vec3((q - p) / len[e]) : Vec3::Zero();
+    }
+    const KdTree tree(c, 0);
+    const Scalar s_mef = st.a * L / 2, s_meg = 0.6, s_ef = st.a * L, s_eg = st.b * L;
+    const Scalar h = s_mef;  // the edge cube has side 2σ_mef
+    const double mid = from + (to - from) / 2;
+
+    // 1) directions: r = e, q = e*, I = d_e* (sign-aligned with d_e), w = l_e*.
+    blocked_for(progress, ne, from, mid, [&](std::size_t e) {
+        thread_local std::vector<Neighbor> nb;
+        dir_f[e] = dir[e];
+        if (len[e] == 0) return;
+        cube_query(tree, c[e], h, nb);
+        Vec3 acc = Vec3::Zero();
+        for (const Neighbor& q : nb) {
+            if (len[q.index] == 0) continue;
+            const Vec3 dq = dir[e].dot(dir[q.index]) < 0 ? Vec3(-dir[q.index]) : dir[q.index];
+            const Scalar Y = (dir[e] - dq).norm();
+            if (Y > 1) continue;  // another feature branch (corner): g = 0
+            acc += len[q.index] * gauss(q.squared_distance, s_mef) * gauss(Y * Y, s_meg) * dq;
+        }
+        const Scalar n = acc.norm();
+        if (n > 0 && std::isfinite(n)) dir_f[e] = acc / n;
+    });
+
+    // 2) vertices: r = i, q = e*, I = Π_e* (projection of p_i on the filtered line of e*), w = l_e*.
+    std::vector<Vec3> out(edge_vertices.size());
+    blocked_for(progress, edge_vertices.size(), mid, to, [&](std::size_t k) {
+        thread_local std::vector<Neighbor> nb;
+        const Vec3& p = V[edge_vertices[k]];
+        out[k] = p;
+        cube_query(tree, p, h, nb);
+        Vec3 acc = Vec3::Zero();
+        Scalar kr = 0;
+        for (const Neighbor& q : nb) {
+            if (len[q.index] == 0) continue;
+            const Vec3& dq = dir_f[q.index];
+            const Vec3 proj = c[q.index] + (p - c[q.index]).dot(dq) * dq;
+            const Scalar w = len[q.index] * gauss(q.squared_distance, s_ef) * gauss((proj - p).squaredNorm(), s_eg);
+            acc += w * proj;
+            kr += w;
+        }
+        if (kr > 0 && std::isfinite(kr)) out[k] = acc / kr;
+    });
+    for (std::size_t k = 0; k < edge_vertices.size(); ++k) V[edge_vertices[k]] = out[k];
+}
+
+/// Filters 3) and 4): face normals, then vertices (all vertices, or those not on a
+/// sharp edge when `fixed` marks them). One call = one iteration.
+inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
+                           const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
+                           Progress& progress, double from, double to) {
+    FaceGeometry g;
+    compute_face_geometry(V, F, g);
+    const std::size_t nv = V.size();
+    const KdTree tree(g.centroid, 0);
+    const Scalar s_f = st.c * L, s_g = st.d * L;
+    const Scalar h = s_f;  // the face cube has side 2σ_f
+    const double mid = from + (to - from) / 2;
+
+    // 3) normals, normal_iterations times.
+    std::vector<Vec3> nf_ = filter_normals(g, tree, g.normal, st.c * L, st.normal_iterations, progress, from, mid);
+
+    // 4) vertices: r = i, q = t* (same cube, around p_i); I = Π_t, w = a_t*. Repeated
+    // vertex_iterations times with the filtered normals n'_t, the centroids following
+    // the moved vertices.
+    std::vector<Vec3> out(nv);
+    const std::size_t vit = std::max<std::size_t>(st.vertex_iterations, 1);
+    for (std::size_t k = 0; k < vit; ++k) {
+        if (k > 0) compute_face_geometry(V, F, g);
+        const KdTree vtree = k > 0 ? KdTree(g.centroid, 0) : KdTree();
+        const KdTree& tr = k > 0 ? vtree : tree;
+        blocked_for(progress, nv, mid + (to - mid) * static_cast<double>(k) / static_cast<double>(vit),
+                    mid + (to - mid) * static_cast<double>(k + 1) / static_cast<double>(vit), [&](std::size_t i) {
+            thread_local std::vector<Neighbor> nb;
+            const Vec3& p = V[i];
+            out[i] = p;
+            if (fixed[i] || !has_face[i]) return;
+            cube_query(tr, p, h, nb);
+            Vec3 acc = Vec3::Zero();
+            Scalar kr = 0;
+            for (const Neighbor& q : nb) {
+                if (g.area[q.index] == 0) continue;
+                const Vec3& n = nf_[q.index];
+                const Scalar off = (p - g.centroid[q.index]).dot(n);
+                const Vec3 proj = p - off * n;
+                const Scalar w = g.area[q.index] * gauss(q.squared_distance, s_f) * gauss(off * off, s_g);
+                acc += w * proj;
+                kr += w;
+            }
+            if (kr > 0 && std::isfinite(kr)) out[i] = acc / kr;
+        });
+        V.swap(out);
+    }
+}
+
+}  // namespace kintsugi::detail::fbs
+
+namespace kintsugi::detail::fbs {
+
+/// Feature detection, optionally on a pre-smoothed copy: `presmooth` passes of
+/// filters 3–4 on every vertex (settings `fs`) before voting, so that the voting sees
+/// the creases rather than the noise. Connectivity is shared, so the sharp edges found
+/// on the copy are the input's edges.
+inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const std::vector<Face>& F,
+                                               const MeshTopology& topo, Scalar L, const FeatureSettings& st,
+                                               const FilterSettings& fs, std::size_t presmooth,
+                                               const std::vector<unsigned char>& has_face, Progress& progress) {
+    std::vector<Vec3> W = V;
+    if (presmooth > 0) {
+        const std::vector<unsigned char> none(V.size(), 0);
+        for (std::size_t it = 0; it < presmooth; ++it)
+            face_iteration(W, F, none, has_face, L, fs, progress, 0.5 * static_cast<double>(it) / presmooth,
+                           0.5 * static_cast<double>(it + 1) / presmooth);
+    }
+    FaceGeometry geo;
+    compute_face_geometry(W, F, geo);
+    return detect_features(W, F, topo, geo, L, st, progress, presmooth > 0 ? 0.5 : 0.0, 1.0);
+}
+
+}  // namespace kintsugi::detail::fbs

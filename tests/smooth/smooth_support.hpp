@@ -1,0 +1,148 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+// Test/bench support for the smooth module: CGAL's smooth_shape as a peer (kintsugi's
+// own Taubin is kintsugi::smooth_taubin), the reference sharp edges of a clean mesh and
+// their precision/recall, and the per-face/per-vertex errors. Comparison code only.
+
+// smooth_shape needs CGAL's Eigen support (Eigen is a kintsugi dependency anyway).
+#ifndef CGAL_EIGEN3_ENABLED
+#define CGAL_EIGEN3_ENABLED 1
+#endif
+
+#include <kintsugi/adapters/cgal.hpp>
+#include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/mesh/geometry.hpp>
+#include <kintsugi/mesh/topology.hpp>
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/smooth_shape.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <map>
+#include <cmath>
+#include <numbers>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace smooth_support {
+
+namespace ks = kintsugi;
+
+/// Edges whose two faces' normals make an angle above `degrees` (vertex pairs a < b).
+inline std::set<std::array<ks::Index, 2>> crease_edges(const ks::IndexedMesh& m, double degrees) {
+    const ks::MeshTopology topo(m.vertices.size(), m.faces);
+    std::set<std::array<ks::Index, 2>> out;
+    const double c = std::cos(degrees * std::numbers::pi / 180.0);
+    for (ks::Index e = 0; e < topo.num_edges(); ++e) {
+        const auto ef = topo.edge_faces(e);
+        if (ef.size() != 2) continue;
+        if (ks::face_normal(m, ef[0]).dot(ks::face_normal(m, ef[1])) < c) out.insert(topo.edges()[e]);
+    }
+    return out;
+}
+
+struct PrecisionRecall {
+    double precision, recall;
+    std::size_t detected, reference, common;
+};
+
+inline PrecisionRecall compare_edges(const std::vector<std::array<ks::Index, 2>>& detected,
+                                     const std::set<std::array<ks::Index, 2>>& reference) {
+    std::size_t common = 0;
+    for (const auto& e : detected) common += reference.count(e);
+    return {detected.empty() ? 0.0 : double(common) / double(detected.size()),
+            reference.empty() ? 0.0 : double(common) / double(reference.size()), detected.size(), reference.size(),
+            common};
+}
+
+/// The surface of the box [0,1]³ triangulated on an n×n grid per side, outward
+/// orientation, vertices shared along the box edges.
+inline ks::IndexedMesh box_mesh(int n) {
+    ks::IndexedMesh m;
+    std::map<std::array<int, 3>, ks::Index> id;
+    auto vid = [&](std::array<int, 3> g) {
+        const auto [it, fresh] = id.try_emplace(g, m.vertices.size());
+        if (fresh) m.vertices.emplace_back(double(g[0]) / n, double(g[1]) / n, double(g[2]) / n);
+        return it->second;
+    };
+    for (int axis = 0; axis < 3; ++axis)
+        for (int side = 0; side < 2; ++side) {
+            const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j < n; ++j) {
+                    std::array<ks::Index, 4> q;
+                    const int di[4] = {0, 1, 1, 0}, dj[4] = {0, 0, 1, 1};
+                    for (int k = 0; k < 4; ++k) {
+                        std::array<int, 3> g{};
+                        g[axis] = side * n;
+                        g[u] = i + di[k];
+                        g[w] = j + dj[k];
+                        q[k] = vid(g);
+                    }
+                    if (side == 1) {
+                        m.faces.push_back({q[0], q[1], q[2]});
+                        m.faces.push_back({q[0], q[2], q[3]});
+                    } else {
+                        m.faces.push_back({q[0], q[2], q[1]});
+                        m.faces.push_back({q[0], q[3], q[2]});
+                    }
+                }
+        }
+    return m;
+}
+
+/// Moves every vertex along its area-weighted normal by a deterministic pseudo-random
+/// amount, uniform in [-amplitude, amplitude].
+inline ks::IndexedMesh add_normal_noise(const ks::IndexedMesh& m, double amplitude, std::uint32_t seed = 1) {
+    ks::IndexedMesh out = m;
+    const auto n = ks::vertex_normals(m);
+    std::uint32_t x = seed;
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+        x = x * 1664525u + 1013904223u;
+        const double r = double(x >> 8) / double(1u << 24) * 2 - 1;
+        out.vertices[v] += amplitude * r * n[v];
+    }
+    return out;
+}
+
+/// The sharp edges (a < b) of box_mesh(n): the mesh edges on the 12 box edges.
+inline std::set<std::array<ks::Index, 2>> box_edges(const ks::IndexedMesh& m) {
+    const ks::MeshTopology topo(m.vertices.size(), m.faces);
+    std::set<std::array<ks::Index, 2>> out;
+    auto on_two_sides = [&](const ks::Vec3& p) {
+        int c = 0;
+        for (int k = 0; k < 3; ++k) c += (p[k] == 0.0 || p[k] == 1.0);
+        return c >= 2;
+    };
+    for (const auto& e : topo.edges()) {
+        const ks::Vec3 &a = m.vertices[e[0]], &b = m.vertices[e[1]];
+        if (!on_two_sides(a) || !on_two_sides(b)) continue;
+        int shared = 0;  // both ends on the same two box sides
+        for (int k = 0; k < 3; ++k)
+            shared += (a[k] == b[k]) && (a[k] == 0.0 || a[k] == 1.0);
+        if (shared >= 2) out.insert(e);
+    }
+    return out;
+}
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
+
+/// CGAL::Polygon_mesh_processing::smooth_shape (implicit mean-curvature flow) with
+/// time step `time` and `iterations`; vertex order is kept.
+inline void cgal_smooth_shape(ks::IndexedMesh& m, double time, unsigned iterations) {
+    SurfaceMesh sm;
+    ks::assign_mesh(sm, m);
+    CGAL::Polygon_mesh_processing::smooth_shape(sm, time,
+                                                CGAL::parameters::number_of_iterations(iterations));
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) m.vertices[v] = ks::vertex_position(sm, v);
+}
+
+}  // namespace smooth_support

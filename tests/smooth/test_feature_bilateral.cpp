@@ -1,0 +1,499 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+// Feature-aware bilateral smoothing: edge strength on known shapes, sharp edges, the
+// smoothing over every mesh adapter, bad input, cancellation, determinism, boundaries,
+// non-manifold and degenerate input, and accuracy on a real noisy/clean pair.
+#include <doctest/doctest.h>
+
+#include "smooth_support.hpp"
+
+#include <kintsugi/adapters/cgal.hpp>
+#include <kintsugi/adapters/eigen.hpp>
+#include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/io/read.hpp>
+#include <kintsugi/mesh/geometry.hpp>
+#include <kintsugi/mesh/taubin.hpp>
+#include <kintsugi/metrics/denoise.hpp>
+#include <kintsugi/smooth/feature_bilateral.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <stop_token>
+#include <string>
+#include <vector>
+
+namespace ks = kintsugi;
+namespace ss = smooth_support;
+
+namespace {
+
+// The paper's exact detection (no pre-smoothing, raw normals, direction test).
+const ks::SharpFeatureParams paper_detection{.prefilter_iterations = 0, .crease_test = false,
+                                                 .presmooth_iterations = 0};
+
+bool on_box_edge(const ks::Vec3& p) {
+    int c = 0;
+    for (int k = 0; k < 3; ++k) c += (p[k] == 0.0 || p[k] == 1.0);
+    return c >= 2;
+}
+bool is_corner(const ks::Vec3& p) {
+    int c = 0;
+    for (int k = 0; k < 3; ++k) c += (p[k] == 0.0 || p[k] == 1.0);
+    return c == 3;
+}
+// Distance from p to the nearest of the 12 box edges (p on the box surface).
+double distance_to_box_edge(const ks::Vec3& p) {
+    double best = 1e9;
+    for (int k = 0; k < 3; ++k) {
+        const int u = (k + 1) % 3, w = (k + 2) % 3;  // edge parallel to axis k
+        for (double a : {0.0, 1.0})
+            for (double b : {0.0, 1.0}) best = std::min(best, std::hypot(p[u] - a, p[w] - b));
+    }
+    return best;
+}
+
+bool all_finite(const ks::IndexedMesh& m) {
+    for (const auto& p : m.vertices)
+        if (!p.allFinite()) return false;
+    return true;
+}
+
+struct Mesh3 {  // one mesh held by every adapter type under test
+    ks::IndexedMesh indexed;
+    Eigen::MatrixXd V;
+    Eigen::MatrixXi F;
+    ss::SurfaceMesh surface;
+    explicit Mesh3(const ks::IndexedMesh& m) : indexed(m) {
+        V.resize(static_cast<Eigen::Index>(m.vertices.size()), 3);
+        F.resize(static_cast<Eigen::Index>(m.faces.size()), 3);
+        for (std::size_t v = 0; v < m.vertices.size(); ++v) V.row(static_cast<Eigen::Index>(v)) = m.vertices[v].transpose();
+        for (std::size_t f = 0; f < m.faces.size(); ++f)
+            for (int k = 0; k < 3; ++k) F(static_cast<Eigen::Index>(f), k) = static_cast<int>(m.faces[f][k]);
+        ks::assign_mesh(surface, m);
+    }
+};
+
+// The mesh under test as type T, and back to an IndexedMesh.
+template <class T>
+struct Holder;
+template <>
+struct Holder<ks::IndexedMesh> {
+    ks::IndexedMesh m;
+    explicit Holder(const ks::IndexedMesh& x) : m(x) {}
+    ks::IndexedMesh& mesh() { return m; }
+    ks::IndexedMesh get() const { return m; }
+};
+template <>
+struct Holder<ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>> {
+    Mesh3 data;
+    ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi> view;
+    explicit Holder(const ks::IndexedMesh& x) : data(x), view(ks::eigen_mesh(data.V, data.F)) {}
+    auto& mesh() { return view; }
+    ks::IndexedMesh get() const { return ks::to_indexed_mesh(view); }
+};
+template <>
+struct Holder<ss::SurfaceMesh> {
+    ss::SurfaceMesh m;
+    explicit Holder(const ks::IndexedMesh& x) { ks::assign_mesh(m, x); }
+    ss::SurfaceMesh& mesh() { return m; }
+    ks::IndexedMesh get() const { return ks::to_indexed_mesh(m); }
+};
+
+std::filesystem::path test_data(const char* name) { return std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "smooth" / name; }
+
+}  // namespace
+
+static_assert(ks::MutableTriangleMesh<ks::IndexedMesh>);
+static_assert(ks::MutableTriangleMesh<ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>>);
+static_assert(!ks::MutableTriangleMesh<ks::EigenMeshView<const Eigen::MatrixXd, Eigen::MatrixXi>>);
+static_assert(ks::TriangleMesh<ks::EigenMeshView<const Eigen::MatrixXd, Eigen::MatrixXi>>);
+
+TEST_CASE("edge strength is ~1 on sharp edges and corners and ~0 on flat faces") {
+    const auto box = ss::box_mesh(12);
+    const auto r = ks::detect_sharp_features(box, paper_detection);
+    REQUIRE(r.status == ks::Status::ok);
+    const auto& f = r.features;
+    REQUIRE(f.edge_strength.size() == box.vertices.size());
+    CHECK(f.mean_edge_length == doctest::Approx(ks::mean_edge_length(box)));
+    std::size_t flat = 0, edge = 0, corner = 0;
+    for (std::size_t v = 0; v < box.vertices.size(); ++v) {
+        const ks::Vec3& p = box.vertices[v];
+        const double s = f.edge_strength[v];
+        CHECK(s >= 0.0);
+        CHECK(s <= 1.0);
+        CHECK(f.eigenvalues[v].sum() == doctest::Approx(1.0));
+        if (is_corner(p)) {
+            ++corner;
+            CHECK(s > 0.9);
+        } else if (on_box_edge(p)) {
+            ++edge;
+            CHECK(s > 0.9);
+            // e3 is the crease direction: along the one axis where p is not on a side.
+            int axis = 0;
+            for (int k = 0; k < 3; ++k)
+                if (p[k] != 0.0 && p[k] != 1.0) axis = k;
+            CHECK(std::abs(f.eigenvectors[v][2][axis]) > 0.99);
+        } else if (distance_to_box_edge(p) > 2.5 / 12) {  // outside every voting cube reaching an edge
+            ++flat;
+            CHECK(s < 1e-6);
+        }
+    }
+    CHECK(corner == 8);
+    CHECK(edge == 12 * 11);
+    CHECK(flat > 0);
+}
+
+TEST_CASE("symmetric creases: s = tan^2(phi/2), as documented") {
+    // A folded strip: two planes meeting along the x axis with normals phi apart.
+    for (double phi_deg : {30.0, 60.0, 90.0}) {
+        const double phi = phi_deg * std::numbers::pi / 180;
+        ks::IndexedMesh m;
+        const int n = 16;
+        // Rows j = -n..n across the crease; the half-planes are rotated by ±phi/2.
+        for (int j = -n; j <= n; ++j)
+            for (int i = 0; i <= n; ++i) {
+                const double t = j / double(n), a = phi / 2;
+                const double y = std::abs(t) * std::cos(a) * (t < 0 ? -1 : 1);
+                const double z = -std::abs(t) * std::sin(a);
+                m.vertices.emplace_back(i / double(n), y, z);
+            }
+        auto id = [&](int i, int j) { return static_cast<ks::Index>((j + n) * (n + 1) + i); };
+        for (int j = -n; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                m.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+                m.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+            }
+        const auto r = ks::detect_sharp_features(m, paper_detection);
+        // A vertex in the middle of the crease sees both sides symmetrically.
+        const double s = r.features.edge_strength[id(n / 2, 0)];
+        CHECK(s == doctest::Approx(std::pow(std::tan(phi / 2), 2)).epsilon(0.05));
+    }
+}
+
+TEST_CASE("sharp edges of a clean box: exactly its 12 edges by default, a band around them with the paper's test") {
+    const auto box = ss::box_mesh(10);
+    const auto truth = ss::box_edges(box);
+    REQUIRE(truth.size() == 12 * 10);
+    const auto r = ks::detect_sharp_features(box);
+    const auto pr = ss::compare_edges(r.features.sharp_edges, truth);
+    CHECK(pr.precision == 1.0);
+    CHECK(pr.recall == 1.0);
+    // The paper's direction test also keeps the edges parallel to a crease whose
+    // vertices see both sides inside the voting cube (half side 1.5|e|): every box
+    // edge is found, and every edge found lies within that band.
+    const auto rp = ks::detect_sharp_features(box, paper_detection);
+    CHECK(ss::compare_edges(rp.features.sharp_edges, truth).recall == 1.0);
+    for (const auto& e : rp.features.sharp_edges) {
+        CHECK(distance_to_box_edge(box.vertices[e[0]]) <= 1.5 / 10 + 1e-12);
+        CHECK(distance_to_box_edge(box.vertices[e[1]]) <= 1.5 / 10 + 1e-12);
+    }
+}
+
+TEST_CASE_TEMPLATE("smooth_feature_bilateral denoises a noisy box on every mesh type", T, ks::IndexedMesh,
+                   ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>, ss::SurfaceMesh) {
+    const auto clean = ss::box_mesh(16);
+    const auto noisy = ss::add_normal_noise(clean, 0.3 * ks::mean_edge_length(clean));
+    Holder<T> h(noisy);
+    const auto r = ks::smooth_feature_bilateral(h.mesh());
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK(r.vertices == clean.vertices.size());
+    CHECK(r.faces == clean.faces.size());
+    CHECK(r.feature_vertices > 0);
+    CHECK(r.timings.size() == 4);
+    const auto out = h.get();
+    REQUIRE(all_finite(out));
+    const auto before = ks::denoise_metrics(noisy, clean);
+    const auto after = ks::denoise_metrics(out, clean);
+    MESSAGE("box: normal error " << before.mean_normal_angle_deg << " -> " << after.mean_normal_angle_deg
+                                 << " deg, vertex rms " << before.vertex_rms << " -> " << after.vertex_rms);
+    CHECK(after.mean_normal_angle_deg < before.mean_normal_angle_deg / 4);
+    CHECK(after.vertex_rms < before.vertex_rms / 2);
+    // The creases are found again: most box edges are sharp edges.
+    const auto pr = ss::compare_edges(r.features.sharp_edges, ss::box_edges(clean));
+    CHECK(pr.recall > 0.9);
+    CHECK(pr.precision > 0.9);
+    // Same result whatever the container.
+    ks::IndexedMesh reference = noisy;
+    (void)ks::smooth_feature_bilateral(reference);
+    for (std::size_t v = 0; v < out.vertices.size(); ++v)
+        REQUIRE((out.vertices[v] - reference.vertices[v]).norm() < 1e-12);
+}
+
+TEST_CASE("features = false runs the same filters without feature handling") {
+    const auto clean = ss::box_mesh(12);
+    const auto noisy = ss::add_normal_noise(clean, 0.3 * ks::mean_edge_length(clean), 7);
+    auto with = noisy, without = noisy;
+    const auto rw = ks::smooth_feature_bilateral(with);
+    const auto ro = ks::smooth_feature_bilateral(without, {.features = false});
+    CHECK(ro.features.sharp_edges.empty());
+    CHECK(ro.feature_vertices == 0);
+    CHECK(rw.feature_vertices > 0);
+    CHECK(ro.timings.size() == 2);  // topology, face smoothing
+    CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
+          ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
+    CHECK(with.vertices != without.vertices);
+}
+
+TEST_CASE("bad input throws invalid_input naming the problem and leaves the mesh untouched") {
+    const auto box = ss::box_mesh(4);
+    auto expect_throw = [](auto&& call, const char* what) {
+        try {
+            call();
+            FAIL("no exception");
+        } catch (const ks::invalid_input& e) {
+            CHECK(std::string(e.what()).find(what) != std::string::npos);
+        }
+    };
+    ks::IndexedMesh empty;
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(empty); }, "no faces");
+    expect_throw([&] { (void)ks::detect_sharp_features(empty); }, "no faces");
+
+    auto nan = box;
+    nan.vertices[3].x() = std::numeric_limits<double>::quiet_NaN();
+    auto nan_copy = nan;
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(nan); }, "vertex 3");
+    CHECK(std::isnan(nan.vertices[3].x()));
+    nan.vertices[3].x() = nan_copy.vertices[3].x() = 0;
+    CHECK(nan.vertices == nan_copy.vertices);
+
+    auto bad_face = box;
+    bad_face.faces[5][1] = 999;
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(bad_face); }, "face 5 uses vertex 999");
+
+    ks::IndexedMesh collapsed{{ks::Vec3(1, 1, 1), ks::Vec3(1, 1, 1), ks::Vec3(1, 1, 1)}, {{0, 1, 2}}, {}};
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(collapsed); }, "zero length");
+
+    auto m = box;
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.a = 0}); }, "a = 0");
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.d = std::numeric_limits<double>::quiet_NaN()}); },
+                 "d = ");
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.c = -1}); }, "c = -1");
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.edge_threshold = 2}); }, "edge_threshold");
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.face_iterations = 20000}); }, "face_iterations");
+    expect_throw([&] { (void)ks::detect_sharp_features(m, {.voting_cube = 0}); }, "voting_cube");
+    expect_throw([&] { (void)ks::detect_sharp_features(m, {.direction_threshold = -0.5}); }, "direction_threshold");
+    CHECK(m.vertices == box.vertices);
+}
+
+TEST_CASE("cancellation leaves the mesh untouched") {
+    const auto noisy = ss::add_normal_noise(ss::box_mesh(10), 0.02);
+    SUBCASE("through the progress callback") {
+        auto m = noisy;
+        int calls = 0;
+        std::vector<std::string> stages;
+        ks::FeatureBilateralParams p;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            stages.emplace_back(e.stage);
+            return ++calls < 8;
+        };
+        const auto r = ks::smooth_feature_bilateral(m, p);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(m.vertices == noisy.vertices);
+        CHECK(r.features.sharp_edges.empty());
+        CHECK(calls == 8);
+    }
+    SUBCASE("through a stop token, late in the run") {
+        auto m = noisy;
+        std::stop_source stop;
+        ks::FeatureBilateralParams p;
+        p.control.stop = stop.get_token();
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            if (std::string(e.stage) == "face smoothing" && e.fraction > 0.8) stop.request_stop();
+            return true;
+        };
+        const auto r = ks::smooth_feature_bilateral(m, p);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(m.vertices == noisy.vertices);
+    }
+    SUBCASE("detection") {
+        std::stop_source stop;
+        stop.request_stop();
+        ks::SharpFeatureParams p;
+        p.control.stop = stop.get_token();
+        const auto r = ks::detect_sharp_features(noisy, p);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(r.features.edge_strength.empty());
+    }
+    SUBCASE("progress is reported in order, at most ~100 times") {
+        auto m = noisy;
+        std::vector<double> fractions;
+        ks::FeatureBilateralParams p;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            fractions.push_back(e.fraction);
+            return true;
+        };
+        CHECK(ks::smooth_feature_bilateral(m, p).status == ks::Status::ok);
+        CHECK(fractions.size() <= 120);
+        CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+        CHECK(fractions.back() == 1.0);
+    }
+}
+
+TEST_CASE("the result does not depend on the thread count") {
+    const auto noisy = ss::add_normal_noise(ss::box_mesh(20), 0.01, 3);
+    auto a = noisy, b = noisy;
+    {
+        ks::ThreadLimit one(1);
+        (void)ks::smooth_feature_bilateral(a);
+    }
+    (void)ks::smooth_feature_bilateral(b);
+    CHECK(a.vertices == b.vertices);
+}
+
+TEST_CASE("open meshes: boundary edges are not sharp, boundary vertices move only across the surface") {
+    auto open = ss::box_mesh(10);
+    // Remove the top side (z = 1): its faces have all three vertices at z = 1.
+    std::erase_if(open.faces, [&](const ks::Face& f) {
+        return open.vertices[f[0]].z() == 1.0 && open.vertices[f[1]].z() == 1.0 && open.vertices[f[2]].z() == 1.0;
+    });
+    const ks::MeshTopology topo(open);
+    REQUIRE(topo.boundary_loops().size() == 1);
+    const auto r = ks::detect_sharp_features(open);
+    for (const auto& e : r.features.sharp_edges) {
+        const auto id = topo.find_edge(e[0], e[1]);
+        REQUIRE(id);
+        CHECK_FALSE(topo.is_boundary_edge(*id));
+    }
+    CHECK(r.features.sharp_edges.size() == 8 * 10);  // the 8 box edges left, none on the rim
+
+    // A flat open patch with noise across it: the boundary stays where it is in the plane.
+    ks::IndexedMesh patch;
+    const int n = 20;
+    std::uint32_t x = 5;
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) {
+            x = x * 1664525u + 1013904223u;
+            patch.vertices.emplace_back(i, j, 0.2 * (double(x >> 8) / double(1u << 24) - 0.5));
+        }
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const ks::Index a = ks::Index(j * (n + 1) + i);
+            patch.faces.push_back({a, a + 1, a + n + 2});
+            patch.faces.push_back({a, a + n + 2, a + n + 1});
+        }
+    auto smoothed = patch;
+    REQUIRE(ks::smooth_feature_bilateral(smoothed).status == ks::Status::ok);
+    double before = 0, after = 0, tangential = 0;
+    for (std::size_t v = 0; v < patch.vertices.size(); ++v) {
+        before += patch.vertices[v].z() * patch.vertices[v].z();
+        after += smoothed.vertices[v].z() * smoothed.vertices[v].z();
+        tangential = std::max(tangential, (smoothed.vertices[v] - patch.vertices[v]).head<2>().norm());
+    }
+    CHECK(after < before / 4);  // the rms height at least halves
+    CHECK(tangential < 0.05);  // no shrinking of the boundary
+}
+
+TEST_CASE("non-manifold and degenerate input work and give finite results") {
+    auto m = ss::add_normal_noise(ss::box_mesh(6), 0.01, 11);
+    // A fin: a third face on an existing edge (non-manifold edge) ...
+    const ks::Face f0 = m.faces[0];
+    m.vertices.emplace_back(0.5, 0.5, -0.3);
+    m.faces.push_back({f0[0], f0[1], m.vertices.size() - 1});
+    // ... a zero-area face (three collinear vertices), a face with a repeated index,
+    // and an isolated vertex.
+    m.vertices.emplace_back(2, 2, 2);
+    m.vertices.emplace_back(3, 3, 3);
+    m.vertices.emplace_back(4, 4, 4);
+    const ks::Index n = m.vertices.size();
+    m.faces.push_back({n - 3, n - 2, n - 1});
+    m.faces.push_back({f0[0], f0[0], f0[2]});
+    m.vertices.emplace_back(9, 9, 9);
+    const auto r = ks::smooth_feature_bilateral(m);
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK(r.degenerate_faces == 2);
+    CHECK(all_finite(m));
+    CHECK(m.vertices.back() == ks::Vec3(9, 9, 9));  // used by no face: never moved
+    const auto f = ks::detect_sharp_features(m);
+    for (double s : f.features.edge_strength) CHECK(std::isfinite(s));
+}
+
+TEST_CASE("real data: Block0.4 (guided denoising) beats Taubin, smooth_shape and features=false") {
+    const auto noisy_path = test_data("block_noisy.ply"), clean_path = test_data("block_clean.ply");
+    REQUIRE(std::filesystem::exists(noisy_path));
+    const auto noisy = ks::read_mesh(noisy_path);
+    const auto clean = ks::read_mesh(clean_path);
+    REQUIRE(noisy.faces == clean.faces);
+    const double L = ks::mean_edge_length(clean);
+
+    // Sharp edges on the noisy mesh against the clean mesh's edges sharper than 60°.
+    const auto reference = ss::crease_edges(clean, 60);
+    const auto det = ks::detect_sharp_features(noisy);
+    const auto pr = ss::compare_edges(det.features.sharp_edges, reference);
+    MESSAGE("sharp edges: precision " << pr.precision << " recall " << pr.recall << " (" << pr.detected
+                                      << " found, " << pr.reference << " in the clean mesh)");
+    CHECK(pr.precision >= 0.9);
+    CHECK(pr.recall >= 0.9);
+
+    auto ours = noisy;
+    REQUIRE(ks::smooth_feature_bilateral(ours).status == ks::Status::ok);
+    const auto m_ours = ks::denoise_metrics(ours, clean);
+    auto plain = noisy;
+    (void)ks::smooth_feature_bilateral(plain, {.features = false});
+    const auto m_plain = ks::denoise_metrics(plain, clean);
+    // Peers, each at its best setting of a small sweep (by normal error).
+    ks::DenoiseMetrics m_taubin{1e9, 1e9, 0}, m_shape{1e9, 1e9, 0};
+    for (std::size_t it : {10, 30, 50}) {
+        auto t = noisy;
+        (void)ks::smooth_taubin(t, {}, {.iterations = it});
+        const auto mt = ks::denoise_metrics(t, clean);
+        if (mt.mean_normal_angle_deg < m_taubin.mean_normal_angle_deg) m_taubin = mt;
+    }
+    for (double time : {0.003, 0.01, 0.03})
+        for (unsigned it : {1u, 3u, 10u}) {
+            auto t = noisy;
+            ss::cgal_smooth_shape(t, time, it);
+            const auto mt = ks::denoise_metrics(t, clean);
+            if (mt.mean_normal_angle_deg < m_shape.mean_normal_angle_deg) m_shape = mt;
+        }
+    const auto m_noisy = ks::denoise_metrics(noisy, clean);
+    MESSAGE("Block0.4 normal error (deg) / vertex rms (|e|): noisy " << m_noisy.mean_normal_angle_deg << " / "
+            << m_noisy.vertex_rms / L << ", ours " << m_ours.mean_normal_angle_deg << " / " << m_ours.vertex_rms / L
+            << ", features=false " << m_plain.mean_normal_angle_deg << " / " << m_plain.vertex_rms / L << ", Taubin "
+            << m_taubin.mean_normal_angle_deg << " / " << m_taubin.vertex_rms / L << ", smooth_shape "
+            << m_shape.mean_normal_angle_deg << " / " << m_shape.vertex_rms / L);
+    CHECK(m_ours.mean_normal_angle_deg < 9.0);
+    CHECK(m_ours.mean_normal_angle_deg < m_plain.mean_normal_angle_deg);
+    CHECK(m_ours.mean_normal_angle_deg < m_taubin.mean_normal_angle_deg);
+    CHECK(m_ours.mean_normal_angle_deg < m_shape.mean_normal_angle_deg);
+    CHECK(m_ours.vertex_rms < m_plain.vertex_rms);
+    CHECK(m_ours.vertex_rms < m_taubin.vertex_rms);
+    CHECK(m_ours.vertex_rms < m_shape.vertex_rms);
+    // Volume (closed genus-3 block) changes by at most 0.5 %.
+    CHECK(std::abs(ks::signed_volume(ours) / ks::signed_volume(noisy) - 1) <= 0.005);
+}
+
+TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers") {
+    const auto root = std::filesystem::path(KINTSUGI_SHARED_DATA_DIR) / "guided_denoising";
+    if (!std::filesystem::exists(root)) {
+        MESSAGE("skipped: " << root.string() << " not found (developer data only)");
+        return;
+    }
+    for (const char* name : {"SharpSphere0.3", "Twelve0.5Impulsive"}) {
+        const auto noisy = ks::read_mesh(root / name / "Noisy.obj");
+        const auto clean = ks::read_mesh(root / name / "Original.obj");
+        auto ours = noisy, plain = noisy, taubin = noisy;
+        (void)ks::smooth_feature_bilateral(ours);
+        (void)ks::smooth_feature_bilateral(plain, {.features = false});
+        (void)ks::smooth_taubin(taubin, {}, {.iterations = 30});
+        const auto mo = ks::denoise_metrics(ours, clean), mp = ks::denoise_metrics(plain, clean),
+                   mt = ks::denoise_metrics(taubin, clean);
+        MESSAGE(std::string(name) << ": ours " << mo.mean_normal_angle_deg << " deg / " << mo.vertex_rms << ", features=false "
+                     << mp.mean_normal_angle_deg << " / " << mp.vertex_rms << ", Taubin(30) "
+                     << mt.mean_normal_angle_deg << " / " << mt.vertex_rms);
+        if (std::string(name) == "SharpSphere0.3") {
+            CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg);
+        } else {
+            // Known gap: Twelve's creases are 63°, at the 60° cut-off (Y > 1) of the
+            // normal filter, so with this noise they are not found and get rounded;
+            // Taubin's normal error is then about 0.5° lower. Held within 1°.
+            CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg + 1.0);
+        }
+        CHECK(mo.vertex_rms < mt.vertex_rms);
+        CHECK(mo.mean_normal_angle_deg <= mp.mean_normal_angle_deg);
+        CHECK(mo.vertex_rms <= mp.vertex_rms);
+        CHECK(std::abs(ks::signed_volume(ours) / ks::signed_volume(noisy) - 1) <= 0.005);
+    }
+}
