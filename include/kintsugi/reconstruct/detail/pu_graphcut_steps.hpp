@@ -1,0 +1,270 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file pu_graphcut_steps.hpp
+/// @brief Steps 4–7 of the PU + graph-cut reconstruction (Nagai, Ohtake, Suzuki
+/// 2011) on the internal layout: regular triangulation of the supports, the graph
+/// of eq. 8–10 and its minimum cut, marching tetrahedra, selective smoothing.
+/// Not templated on the user's types; included by reconstruct/pu_graphcut.hpp.
+///
+/// Uses CGAL's Regular_triangulation_3 (GPL-3.0-or-later, Triangulation_3 package).
+
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/graph/st_cut.hpp>
+#include <kintsugi/mesh/marching_tetrahedra.hpp>
+#include <kintsugi/mesh/taubin.hpp>
+#include <kintsugi/mesh/topology.hpp>
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Hidden_point_memory_policy.h>
+#include <CGAL/Regular_triangulation_3.h>
+#include <CGAL/Regular_triangulation_cell_base_3.h>
+#include <CGAL/Regular_triangulation_vertex_base_3.h>
+#include <CGAL/Spatial_sort_traits_adapter_3.h>
+#include <CGAL/Triangulation_data_structure_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+#include <CGAL/property_map.h>
+#include <CGAL/spatial_sort.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <utility>
+#include <vector>
+
+namespace kintsugi::detail {
+
+/// The tetrahedral mesh of step 4: the non-hidden supports plus the outer layer.
+struct PUTetMesh {
+    std::vector<Vec3> vertices;
+    std::vector<Tet> tets;                     ///< positively oriented
+    std::vector<std::array<Index, 2>> edges;   ///< unique, a < b
+    std::vector<Index> site;                   ///< per vertex: input site index
+    std::size_t hidden = 0;                    ///< input sites that vanished (hidden)
+};
+
+/// Regular triangulation of weighted sites (centre, weight = radius²) with CGAL.
+/// Sites with radius 0 are plain points. Reports progress in [p0, p1].
+inline PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::vector<Scalar>& radii,
+                                  Progress& progress, double p0, double p1) {
+    using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+    using Vb = CGAL::Triangulation_vertex_base_with_info_3<Index, K, CGAL::Regular_triangulation_vertex_base_3<K>>;
+    using Cb = CGAL::Regular_triangulation_cell_base_3<K, CGAL::Triangulation_cell_base_3<K>,
+                                                       CGAL::Discard_hidden_points>;
+    using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
+    using RT = CGAL::Regular_triangulation_3<K, Tds>;
+    using WP = K::Weighted_point_3;
+
+    const std::size_t n = centers.size();
+    // Hilbert order once, then insertion in chunks so that cancellation is checked.
+    std::vector<K::Point_3> pts(n);
+    for (std::size_t i = 0; i < n; ++i) pts[i] = K::Point_3(centers[i].x(), centers[i].y(), centers[i].z());
+    std::vector<Index> order(n);
+    std::iota(order.begin(), order.end(), Index{0});
+    using Pmap = CGAL::Pointer_property_map<K::Point_3>::const_type;
+    CGAL::spatial_sort(order.begin(), order.end(),
+                       CGAL::Spatial_sort_traits_adapter_3<K, Pmap>(CGAL::make_property_map(std::as_const(pts))));
+    RT rt;
+    const std::size_t chunk = 1 << 15;
+    std::vector<std::pair<WP, Index>> batch;
+    for (std::size_t b = 0; b < n; b += chunk) {
+        progress.update(p0 + (p1 - p0) * 0.9 * static_cast<double>(b) / static_cast<double>(n));
+        batch.clear();
+        for (std::size_t j = b; j < std::min(n, b + chunk); ++j) {
+            const Index i = order[j];
+            batch.emplace_back(WP(pts[i], radii[i] * radii[i]), i);
+        }
+        rt.insert(batch.begin(), batch.end());
+    }
+    progress.check();
+
+    PUTetMesh out;
+    // Vertices numbered by increasing site index (deterministic, independent of CGAL's storage).
+    std::vector<Index> alive;
+    alive.reserve(rt.number_of_vertices());
+    for (auto v : rt.finite_vertex_handles()) alive.push_back(v->info());
+    std::sort(alive.begin(), alive.end());
+    std::vector<Index> vertex_of(n, std::numeric_limits<Index>::max());
+    for (Index k = 0; k < alive.size(); ++k) vertex_of[alive[k]] = k;
+    out.hidden = n - alive.size();
+    out.site = alive;
+    out.vertices.resize(alive.size());
+    for (Index k = 0; k < alive.size(); ++k) out.vertices[k] = centers[alive[k]];
+    out.tets.reserve(rt.number_of_finite_cells());
+    for (auto c : rt.finite_cell_handles())
+        out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
+                            vertex_of[c->vertex(2)->info()], vertex_of[c->vertex(3)->info()]});
+    out.edges.reserve(rt.number_of_finite_edges());
+    for (auto it = rt.finite_edges_begin(); it != rt.finite_edges_end(); ++it) {
+        Index a = vertex_of[it->first->vertex(it->second)->info()];
+        Index b = vertex_of[it->first->vertex(it->third)->info()];
+        if (a > b) std::swap(a, b);
+        out.edges.push_back({a, b});
+    }
+    std::sort(out.edges.begin(), out.edges.end());
+    // Tets sorted too: the output mesh then depends only on the triangulation itself.
+    for (auto& t : out.tets) {
+        // rotate to the smallest index first keeping orientation (even permutations)
+        const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
+        const auto p = even_permutation(m);
+        t = Tet{t[static_cast<std::size_t>(p[0])], t[static_cast<std::size_t>(p[1])],
+                t[static_cast<std::size_t>(p[2])], t[static_cast<std::size_t>(p[3])]};
+    }
+    std::sort(out.tets.begin(), out.tets.end());
+    progress.update(p1);
+    return out;
+}
+
+/// Points on the surface of `box` on a grid with `per_side` intervals per side
+/// (corners and edges included once): the outer layer labelled outside.
+inline std::vector<Vec3> box_surface_points(const BoundingBox& box, int per_side) {
+    std::vector<Vec3> out;
+    const Vec3 ext = box.extent();
+    for (int k = 0; k <= per_side; ++k)
+        for (int j = 0; j <= per_side; ++j)
+            for (int i = 0; i <= per_side; ++i) {
+                if (i != 0 && i != per_side && j != 0 && j != per_side && k != 0 && k != per_side) continue;
+                const Vec3 t(static_cast<Scalar>(i) / per_side, static_cast<Scalar>(j) / per_side,
+                             static_cast<Scalar>(k) / per_side);
+                out.push_back(box.min + Vec3(t.array() * ext.array()));
+            }
+    return out;
+}
+
+/// Step 5: the graph of eq. 8–10 over the tet mesh and its minimum cut.
+/// f_edge: field values for the edge capacities (eq. 10); f_terminal: values for the
+/// terminal links (eq. 8, 9); both > 0 inside. forced_out: vertices tied to the sink
+/// (the outer layer). Returns labels (1 = inside) and fills the cut value.
+inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std::vector<Scalar>& f_edge,
+                                                 const std::vector<Scalar>& f_terminal,
+                                                 const std::vector<std::uint8_t>& forced_out, Scalar k,
+                                                 Scalar& cut_value, const RunControl& control) {
+    const std::size_t nv = tm.vertices.size();
+    StCutGraph g;
+    g.num_nodes = nv;
+    g.edges = tm.edges;
+    g.capacities.resize(tm.edges.size());
+    std::vector<Scalar> len_sum(nv, 0);
+    std::vector<std::uint32_t> deg(nv, 0);
+    for (std::size_t e = 0; e < tm.edges.size(); ++e) {
+        const auto [a, b] = tm.edges[e];
+        const Scalar len = (tm.vertices[a] - tm.vertices[b]).norm();
+        len_sum[a] += len;
+        len_sum[b] += len;
+        ++deg[a];
+        ++deg[b];
+        g.capacities[e] = len > 0 ? std::abs(f_edge[a] + f_edge[b]) / len : Scalar(0);  // eq. 10
+    }
+    g.source_capacities.assign(nv, 0);
+    g.sink_capacities.assign(nv, 0);
+    for (std::size_t v = 0; v < nv; ++v) {
+        if (forced_out[v]) {
+            g.sink_capacities[v] = std::numeric_limits<Scalar>::infinity();
+            continue;
+        }
+        if (deg[v] == 0) continue;
+        const Scalar ave = len_sum[v] / deg[v];
+        const Scalar w = ave > 0 ? k * std::abs(f_terminal[v]) / ave : Scalar(0);
+        if (f_terminal[v] >= 0) g.source_capacities[v] = w;  // eq. 8
+        else g.sink_capacities[v] = w;              // eq. 9
+    }
+    StCutParams sp;
+    sp.control = control;
+    sp.control.progress = nullptr;  // the caller reports around this stage
+    const StCutResult cut = st_min_cut(g, sp);
+    if (cut.status == Status::cancelled) throw cancelled_exception{};
+    cut_value = cut.cut_value;
+    std::vector<std::uint8_t> inside(nv);
+    for (std::size_t v = 0; v < nv; ++v) inside[v] = cut.labels[v] == StSide::source;
+    return inside;
+}
+
+/// Step 6, vertex placement on the field itself: the paper puts the vertex of a mixed
+/// edge where f(x) = 0. Marching tetrahedra interpolates f linearly between the two
+/// ends; here the zero is found on the PU field along the edge: f is sampled at
+/// `samples` + 1 points from the inside end, the first + to - change is bracketed and
+/// refined by the Illinois (regula falsi) method. Edges on which f never changes sign
+/// keep the same-sign placement. The parameter stays in [min_fraction, 1 - min_fraction]
+/// (no coincident vertices). `field(x)` must be thread-safe. Returns the number of
+/// vertices whose edge turned out to have a sign change after all.
+template <class Field>
+std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_vertices,
+                              const std::vector<Scalar>& f, MarchingTetrahedraResult& mt, Scalar min_fraction,
+                              int samples, Progress& progress) {
+    const std::size_t n = mt.mesh.vertices.size();
+    std::vector<std::uint8_t> found(n, 0);
+    const std::size_t block = 4096;
+    for (std::size_t b0 = 0; b0 < n; b0 += 16 * block) {
+        progress.update(static_cast<double>(b0) / static_cast<double>(std::max<std::size_t>(n, 1)));
+        const std::size_t b1 = std::min(n, b0 + 16 * block);
+        parallel_for(b0, b1, [&](std::size_t i) {
+            const auto [a, b] = mt.vertex_edges[i];
+            if (a == b) return;
+            const Vec3& pa = tet_vertices[a];
+            const Vec3 d = tet_vertices[b] - pa;
+            auto eval = [&](Scalar t) {
+                if (t <= 0) return f[a];
+                if (t >= 1) return f[b];
+                const Scalar v = field(Vec3(pa + t * d));
+                return std::isnan(v) ? Scalar(0) : v;
+            };
+            Scalar t0 = 0, f0 = eval(0);
+            bool bracket = false;
+            Scalar t1 = 0, f1 = 0;
+            for (int k = 1; k <= samples; ++k) {
+                const Scalar t = static_cast<Scalar>(k) / samples;
+                const Scalar ft = eval(t);
+                if (f0 > 0 && ft <= 0) {
+                    t1 = t;
+                    f1 = ft;
+                    bracket = true;
+                    break;
+                }
+                t0 = t;
+                f0 = ft;
+            }
+            if (!bracket) return;
+            // Illinois: regula falsi with halving of the stale end's value.
+            int side = 0;
+            for (int it = 0; it < 30 && t1 - t0 > Scalar(1e-9); ++it) {
+                const Scalar t = f0 == f1 ? (t0 + t1) / 2 : t0 + f0 * (t1 - t0) / (f0 - f1);
+                const Scalar ft = eval(t);
+                if (ft > 0) {
+                    t0 = t;
+                    f0 = ft;
+                    if (side == -1) f1 /= 2;
+                    side = -1;
+                } else if (ft < 0) {
+                    t1 = t;
+                    f1 = ft;
+                    if (side == 1) f0 /= 2;
+                    side = 1;
+                } else {
+                    t0 = t1 = t;
+                    break;
+                }
+            }
+            const Scalar t = std::clamp(f0 == f1 ? (t0 + t1) / 2 : t0 + f0 * (t1 - t0) / (f0 - f1), min_fraction,
+                                        1 - min_fraction);
+            mt.mesh.vertices[i] = pa + t * d;
+            found[i] = 1;
+        }, 256);
+    }
+    std::size_t turned = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (found[i] && mt.same_sign[i]) {
+            mt.same_sign[i] = 0;
+            --mt.same_sign_vertices;
+            ++turned;
+        }
+    }
+    return turned;
+}
+
+}  // namespace kintsugi::detail

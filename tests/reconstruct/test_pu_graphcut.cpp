@@ -1,0 +1,280 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+// PU + graph-cut reconstruction (Nagai, Ohtake, Suzuki 2011): accuracy with outliers,
+// the output guarantee, the graph cut against the plain sign, containers,
+// determinism, bad input, cancellation.
+#include <doctest/doctest.h>
+
+#include "reconstruct/pu_test_data.hpp"
+
+#include <kintsugi/adapters/cgal.hpp>
+#include <kintsugi/adapters/projection.hpp>
+#include <kintsugi/adapters/std_vector.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/metrics/topology_report.hpp>
+#include <kintsugi/reconstruct/pu_graphcut.hpp>
+
+#include <CGAL/Simple_cartesian.h>
+
+#include <array>
+#include <limits>
+#include <stop_token>
+#include <string>
+#include <vector>
+
+namespace ks = kintsugi;
+using kintsugi_test::Shape;
+
+namespace {
+
+void check_guarantee(const ks::IndexedMesh& m) {
+    const auto r = ks::topology_report(m);
+    CHECK(r.closed);
+    CHECK(r.manifold);
+    CHECK(r.consistently_oriented);
+    CHECK(r.degenerate_faces == 0);
+    CHECK(r.isolated_vertices == 0);
+    CHECK(ks::signed_volume(m) > 0);  // outward
+}
+
+struct Outcome {
+    std::size_t components = 0;
+    long genus = -2;
+    double mean = 0, max = 0;  // relative to the diagonal
+};
+
+Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* keep = nullptr) {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(s, 20000, 0.001, 0.10, 42, pts, nrm);
+    const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.labeling = labeling});
+    REQUIRE(r.status == ks::Status::ok);
+    check_guarantee(r.mesh);
+    Outcome o;
+    const auto rep = ks::topology_report(r.mesh);
+    o.components = rep.components;
+    o.genus = rep.genus;
+    kintsugi_test::distance_to_shape(r.mesh, s, o.mean, o.max);
+    o.mean /= s.diagonal();
+    o.max /= s.diagonal();
+    if (keep) *keep = r;
+    return o;
+}
+
+}  // namespace
+
+TEST_CASE("reconstruct_pu_graphcut: sphere with 10 % outliers -> one closed genus-0 surface") {
+    ks::PUGraphcutResult r;
+    const Shape sphere{0};
+    const Outcome gc = run_shape(sphere, ks::Labeling::graphcut, &r);
+    MESSAGE("sphere graphcut: components " << gc.components << " mean " << gc.mean << " max " << gc.max);
+    CHECK(gc.components == 1);
+    CHECK(gc.genus == 0);
+    CHECK(gc.mean <= 0.001);
+    // counts are filled and consistent
+    CHECK(r.points == 22000);
+    CHECK(r.supports > 0);
+    CHECK(r.supports <= r.octree_cells);
+    CHECK(r.graph_nodes == r.supports - r.hidden_supports + r.outer_vertices);
+    CHECK(r.graph_edges > r.graph_nodes);
+    CHECK(r.cut_value > 0);
+    CHECK(r.smoothed_vertices > 0);
+    CHECK(r.smoothed_vertices <= r.mesh.vertices.size());
+    std::vector<std::string> stages;
+    for (const auto& t : r.timings) stages.push_back(t.stage);
+    CHECK(stages == std::vector<std::string>{"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
+                                             "marching_tetrahedra", "smoothing"});
+    // The plain sign of the PU field (the paper's "PU only") is measurably worse.
+    const Outcome sign = run_shape(sphere, ks::Labeling::sign);
+    MESSAGE("sphere sign: components " << sign.components << " mean " << sign.mean);
+    CHECK(sign.components > gc.components);
+    CHECK(sign.mean > 5 * gc.mean);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: torus with 10 % outliers -> one closed genus-1 surface") {
+    const Shape torus{1};
+    const Outcome gc = run_shape(torus, ks::Labeling::graphcut);
+    MESSAGE("torus graphcut: components " << gc.components << " mean " << gc.mean << " max " << gc.max);
+    CHECK(gc.components == 1);
+    CHECK(gc.genus == 1);
+    CHECK(gc.mean <= 0.001);
+    const Outcome sign = run_shape(torus, ks::Labeling::sign);
+    MESSAGE("torus sign: components " << sign.components << " mean " << sign.mean);
+    CHECK(sign.components > gc.components);
+    CHECK(sign.mean > 5 * gc.mean);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: inward normals give the same surface") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{0}, 4000, 0.001, 0.0, 5, pts, nrm);
+    const auto out = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.max_level = 6});
+    for (auto& n : nrm) n = -n;
+    const auto in = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm),
+                                                {.max_level = 6, .normals = ks::NormalConvention::inward});
+    CHECK(in.mesh.faces == out.mesh.faces);
+    CHECK(in.mesh.vertices == out.mesh.vertices);
+    check_guarantee(in.mesh);
+}
+
+namespace {
+struct UserSample {
+    float xyz[3];
+    std::array<double, 3> n;
+    int tag;
+};
+using Kernel = CGAL::Simple_cartesian<double>;
+}  // namespace
+
+TEST_CASE("reconstruct_pu_graphcut: any container gives the identical mesh; output into CGAL::Surface_mesh") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{1}, 5000, 0.001, 0.05, 9, pts, nrm);
+    // float coordinates for every container, so all see the same input
+    auto round_to_float = [](double x) {
+        volatile float f = static_cast<float>(x);  // volatile: GCC 12 -O2 folds the double->float->double round trip
+        return static_cast<double>(f);
+    };
+    for (auto& p : pts) p = ks::Vec3(round_to_float(p.x()), round_to_float(p.y()), round_to_float(p.z()));
+    const ks::PUGraphcutParams params{.max_level = 7};
+    std::vector<Eigen::Vector3d> vp(pts.begin(), pts.end()), vn(nrm.begin(), nrm.end());
+    const auto a = ks::reconstruct_pu_graphcut(ks::with_normals(vp, vn), params);
+    REQUIRE(a.status == ks::Status::ok);
+    check_guarantee(a.mesh);
+
+    CGAL::Point_set_3<Kernel::Point_3, Kernel::Vector_3> ps;
+    ps.add_normal_map();
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        ps.insert(Kernel::Point_3(pts[i].x(), pts[i].y(), pts[i].z()),
+                  Kernel::Vector_3(nrm[i].x(), nrm[i].y(), nrm[i].z()));
+    const auto b = ks::reconstruct_pu_graphcut(ps, params);
+    CHECK(b.mesh.vertices == a.mesh.vertices);
+    CHECK(b.mesh.faces == a.mesh.faces);
+
+    std::vector<UserSample> user;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        user.push_back({{static_cast<float>(pts[i].x()), static_cast<float>(pts[i].y()), static_cast<float>(pts[i].z())},
+                        {nrm[i].x(), nrm[i].y(), nrm[i].z()},
+                        static_cast<int>(i)});
+    const auto view = ks::project_points(user, &UserSample::xyz, &UserSample::n);
+    REQUIRE(ks::gather_points(view) == ks::gather_points(ks::with_normals(vp, vn)));
+    REQUIRE(ks::gather_normals(view) == ks::gather_normals(ks::with_normals(vp, vn)));
+    const auto c = ks::reconstruct_pu_graphcut(view, params);
+    CHECK(c.mesh.vertices == a.mesh.vertices);
+    CHECK(c.mesh.faces == a.mesh.faces);
+
+    CGAL::Surface_mesh<Kernel::Point_3> sm;
+    const auto d = ks::reconstruct_pu_graphcut(ks::with_normals(vp, vn), sm, params);
+    CHECK(d.status == ks::Status::ok);
+    CHECK(d.mesh.faces.empty());
+    CHECK(sm.number_of_faces() == a.mesh.faces.size());
+    CHECK(ks::topology_report(sm).closed);
+    CHECK(CGAL::is_valid_polygon_mesh(sm));
+}
+
+TEST_CASE("reconstruct_pu_graphcut: same seed, byte-identical output with 1 and 2 threads") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{0}, 8000, 0.001, 0.10, 11, pts, nrm);
+    const ks::PUGraphcutParams params{.max_level = 7, .seed = 3};
+    ks::PUGraphcutResult one, two;
+    {
+        ks::ThreadLimit limit(1);
+        one = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), params);
+    }
+    {
+        ks::ThreadLimit limit(2);
+        two = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), params);
+    }
+    REQUIRE(one.mesh.vertices.size() == two.mesh.vertices.size());
+    CHECK(one.mesh.faces == two.mesh.faces);
+    CHECK(std::memcmp(one.mesh.vertices.data(), two.mesh.vertices.data(),
+                      one.mesh.vertices.size() * sizeof(ks::Vec3)) == 0);
+    CHECK(one.cut_value == two.cut_value);
+    // another seed: another support cover, still a valid surface
+    const auto other = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.max_level = 7, .seed = 4});
+    CHECK(other.mesh.vertices != one.mesh.vertices);
+    check_guarantee(other.mesh);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the problem") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{0}, 200, 0.0, 0.0, 1, pts, nrm);
+    const auto pts0 = pts;
+    auto expect = [&](const std::vector<ks::Vec3>& p, const std::vector<ks::Vec3>& n, const ks::PUGraphcutParams& prm,
+                      const char* what) {
+        CAPTURE(what);
+        CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(p, n), prm),
+                             doctest::Contains(what), ks::invalid_input);
+    };
+    expect({pts[0], pts[1], pts[2]}, {nrm[0], nrm[1], nrm[2]}, {}, "at least 4 points");
+    auto n2 = nrm;
+    n2[7] = ks::Vec3::Zero();
+    expect(pts, n2, {}, "zero length");
+    auto p2 = pts;
+    p2[3].y() = std::numeric_limits<double>::quiet_NaN();
+    expect(p2, nrm, {}, "NaN");
+    n2 = nrm;
+    n2[4].x() = std::numeric_limits<double>::infinity();
+    expect(pts, n2, {}, "normal of point 4");
+    std::vector<ks::Vec3> flat, fn;
+    for (int i = 0; i < 50; ++i) {
+        flat.emplace_back(i % 7, i / 7, 0.0);
+        fn.emplace_back(0, 0, 1);
+    }
+    expect(flat, fn, {}, "coplanar");
+    std::vector<ks::Vec3> line;
+    for (int i = 0; i < 50; ++i) line.emplace_back(i, 2.0 * i, 0.0);
+    expect(line, fn, {}, "collinear");
+    expect(pts, nrm, {.k = 0}, "k = ");
+    expect(pts, nrm, {.k = -2}, "k = ");
+    expect(pts, nrm, {.max_level = 0}, "max_level");
+    expect(pts, nrm, {.max_level = 13}, "max_level");
+    expect(pts, nrm, {.epsilon = 0}, "epsilon");
+    // every message names the function
+    CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.k = 0}),
+                         doctest::Contains("kintsugi::reconstruct_pu_graphcut"), ks::invalid_input);
+    // missing normals: a Point_set_3 without a normal map, and a with_normals of the wrong length
+    CGAL::Point_set_3<Kernel::Point_3, Kernel::Vector_3> ps;
+    for (const auto& p : pts) ps.insert(Kernel::Point_3(p.x(), p.y(), p.z()));
+    CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ps), doctest::Contains("no normals"), ks::invalid_input);
+    std::vector<ks::Vec3> short_n(nrm.begin(), nrm.end() - 1);
+    CHECK_THROWS_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(pts, short_n)), ks::invalid_input);
+    CHECK(pts == pts0);
+    // the output mesh is untouched on error
+    ks::IndexedMesh out;
+    out.vertices = {ks::Vec3(1, 2, 3)};
+    CHECK_THROWS_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), out, {.k = 0}), ks::invalid_input);
+    CHECK(out.vertices.size() == 1);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: cancellation at every stage") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{0}, 3000, 0.001, 0.05, 2, pts, nrm);
+    const auto pts0 = pts;
+    for (const std::string stage : {"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
+                                    "marching_tetrahedra", "smoothing"}) {
+        CAPTURE(stage);
+        bool seen = false;
+        ks::PUGraphcutParams p{.max_level = 6};
+        double last = -1;
+        bool monotone = true;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            monotone = monotone && e.fraction >= last;
+            last = e.fraction;
+            if (e.stage == stage) seen = true;
+            return !seen;
+        };
+        ks::IndexedMesh out;
+        out.vertices = {ks::Vec3(1, 2, 3)};
+        const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), out, p);
+        CHECK(seen);
+        CHECK(monotone);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(r.mesh.faces.empty());
+        CHECK(out.vertices.size() == 1);
+    }
+    std::stop_source stop;
+    stop.request_stop();
+    ks::PUGraphcutParams p{.max_level = 6};
+    p.control.stop = stop.get_token();
+    CHECK(ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), p).status == ks::Status::cancelled);
+    CHECK(pts == pts0);
+}
