@@ -289,7 +289,8 @@ public:
     template <class Classify, class Visit>
     void visit_cells(Classify&& classify, Visit&& visit) const {
         if (cells_.empty()) return;
-        descend(0, 0, 0, cells_.size(), classify, visit);
+        auto never = [](Index, Index) { return false; };
+        descend(0, 0, 0, cells_.size(), classify, visit, never);
     }
 
     /// Same as visit_cells(classify, visit), restricted to the cells that meet the box
@@ -298,6 +299,14 @@ public:
     /// boxes that are small compared with the cube. Cells are visited once, in Morton order.
     template <class Classify, class Visit>
     void visit_cells(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit) const {
+        visit_cells(lo, hi, classify, visit, [](Index, Index) { return false; });
+    }
+
+    /// Same, with `skip(first, last)`: called on nodes holding more than one cell
+    /// (cells [first, last) in Morton order) before `classify`; returning true prunes
+    /// the node (e.g. when none of its cells is still of interest).
+    template <class Classify, class Visit, class Skip>
+    void visit_cells(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit, Skip&& skip) const {
         if (cells_.empty()) return;
         const Scalar n = static_cast<Scalar>(std::uint64_t{1} << max_level_);
         std::array<std::int64_t, 3> a{}, b{};
@@ -330,7 +339,9 @@ public:
                     starts[static_cast<std::size_t>(ns++)] =
                         detail::morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
                                               static_cast<std::uint32_t>(z)) << (3 * sh);
-        std::sort(starts.begin(), starts.begin() + ns);
+        for (int i = 1; i < ns; ++i)  // insertion sort of at most 8 codes
+            for (int j = i; j > 0 && starts[static_cast<std::size_t>(j)] < starts[static_cast<std::size_t>(j - 1)]; --j)
+                std::swap(starts[static_cast<std::size_t>(j)], starts[static_cast<std::size_t>(j - 1)]);
         for (int i = 0; i < ns; ++i) {
             const std::uint64_t code = starts[static_cast<std::size_t>(i)];
             const Index first = locate_code(code);
@@ -344,7 +355,7 @@ public:
             const std::uint64_t end = code + (std::uint64_t{1} << (3 * sh));
             const auto last = static_cast<Index>(
                 std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(first), codes_.end(), end) - codes_.begin());
-            descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once);
+            descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once, skip);
         }
     }
 
@@ -542,17 +553,18 @@ private:
             out.push_back(j);
     }
 
-    template <class Classify, class Visit>
+    template <class Classify, class Visit, class Skip>
     void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Classify& classify,
-                 Visit& visit) const {
+                 Visit& visit, Skip& skip) const {
         const auto a = detail::morton_decode(code);
-        descend_xyz(level, code, a[0], a[1], a[2], first, last, classify, visit);
+        descend_xyz(level, code, a[0], a[1], a[2], first, last, classify, visit, skip);
     }
 
     // Node (level, code and minimum corner (x, y, z) in finest units) covers cells [first, last).
-    template <class Classify, class Visit>
+    template <class Classify, class Visit, class Skip>
     void descend_xyz(std::uint32_t level, std::uint64_t code, std::uint32_t x, std::uint32_t y, std::uint32_t z,
-                     Index first, Index last, Classify& classify, Visit& visit) const {
+                     Index first, Index last, Classify& classify, Visit& visit, Skip& skip) const {
+        if (last - first > 1 && skip(first, last)) return;
         const Scalar s = unit_ * static_cast<Scalar>(std::uint32_t{1} << (max_level_ - static_cast<int>(level)));
         const Vec3 lo(cube_min_[0] + unit_ * x, cube_min_[1] + unit_ * y, cube_min_[2] + unit_ * z);
         const int cls = static_cast<int>(classify(lo, Vec3(lo[0] + s, lo[1] + s, lo[2] + s)));
@@ -562,7 +574,14 @@ private:
             return;
         }
         if (cls >= 2) {
-            for (Index c = first; c < last; ++c) visit(c);
+            // every cell is wanted; runs of 64 cells that `skip` rejects are jumped over
+            for (Index c = first; c < last;) {
+                if (c + 64 <= last && skip(c, c + 64)) {
+                    c += 64;
+                    continue;
+                }
+                visit(c++);
+            }
             return;
         }
         const int shift = 3 * (max_level_ - static_cast<int>(level) - 1);
@@ -580,7 +599,7 @@ private:
             }
             if (e > b)
                 descend_xyz(level + 1, code + (std::uint64_t{k} << shift), x + ((k & 1) ? half : 0),
-                            y + ((k & 2) ? half : 0), z + ((k & 4) ? half : 0), b, e, classify, visit);
+                            y + ((k & 2) ? half : 0), z + ((k & 4) ? half : 0), b, e, classify, visit, skip);
             b = e;
         }
     }

@@ -257,7 +257,21 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
     stats.candidates = n;
     const std::vector<Index> order = pu_random_order(n, in.seed);
     std::vector<char> covered(n, 0);
+    // Uncovered cells per block of 64 consecutive cells (Morton order): octree nodes
+    // whose cells are all covered already are pruned from the covering queries.
+    constexpr std::size_t kBlock = 64;
+    std::vector<std::uint32_t> block_uncovered((n + kBlock - 1) / kBlock, 0);
+    for (std::size_t c = 0; c < n; ++c) ++block_uncovered[c / kBlock];
+    // Conservative (whole blocks): true only when every block meeting [first, last)
+    // is fully covered.
+    auto all_covered = [&](Index first, Index last) {
+        for (std::size_t b = first / kBlock, e = (last - 1) / kBlock; b <= e; ++b)
+            if (block_uncovered[b] != 0) return false;
+        return true;
+    };
     std::vector<PUSupportData> supports;
+    const Scalar half_diag_min =
+        Scalar(0.5) * std::sqrt(Scalar(3)) * oct.cube_side() / static_cast<Scalar>(1u << oct.max_level());
     std::size_t remaining = n;
     std::size_t pos = 0;
     // Batch size only changes how much speculative work is wasted, never the result:
@@ -282,14 +296,23 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             auto& list = inside[k];
             list.clear();
             const Scalar r2 = s.r * s.r;
+            // A cell inside the ball has its centre closer than r - (half diagonal) to c,
+            // and no cell is smaller than the finest one: nodes farther than r_in from c
+            // hold no cell inside the ball.
+            const Scalar r_in = std::max(Scalar(0), s.r - half_diag_min);
+            const Scalar r_in2 = r_in * r_in;
             int last_class = 0;
             // Cells reached through a node inside the ball are inside; others are tested.
             oct.visit_cells(
-                s.c - Vec3::Constant(s.r), s.c + Vec3::Constant(s.r),
-                [&](const Vec3& lo, const Vec3& hi) { return last_class = pu_classify_box(s.c, r2, lo, hi); },
+                s.c - Vec3::Constant(r_in), s.c + Vec3::Constant(r_in),
+                [&](const Vec3& lo, const Vec3& hi) {
+                    if (!(pu_box_distance_squared(s.c, lo, hi) < r_in2)) return last_class = 0;
+                    return last_class = (pu_box_far_squared(s.c, lo, hi) < r2 ? 2 : 1);
+                },
                 [&](Index c) {
                     if (!covered[c] && (last_class == 2 || pu_cell_inside_ball(oct, c, s.c, s.r))) list.push_back(c);
-                });
+                },
+                all_covered);
         }, 1);
         stats.evaluated += batch.size();
         std::size_t accepted = 0;
@@ -300,6 +323,7 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             for (const Index c : inside[k])
                 if (!covered[c]) {
                     covered[c] = 1;
+                    --block_uncovered[c / kBlock];
                     --remaining;
                 }
             if (s.fallback) ++stats.fallback;
