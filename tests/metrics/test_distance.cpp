@@ -6,13 +6,16 @@
 // against CGAL's own Hausdorff estimate.
 #include <doctest/doctest.h>
 
+#include <kintsugi/adapters/projection.hpp>
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/metrics/distance.hpp>
 
 #include "metrics/mesh_fixtures.hpp"
 
+#include <CGAL/Point_set_3.h>
 #include <CGAL/Polygon_mesh_processing/distance.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stop_token>
@@ -190,6 +193,50 @@ TEST_CASE("compare_points: points sampled on the mesh, with and without normals"
     CHECK(rn.normal_consistency > 0.97);
     CHECK(rn.normal_consistency <= 1.0);
     CHECK(same(rn.a_to_b, r.a_to_b));
+}
+
+namespace {
+struct UserSample {
+    float xyz[3];
+    std::array<float, 3> n;
+};
+}  // namespace
+
+TEST_CASE("compare_points: CGAL::Point_set_3 and a user struct give the same report as std::vector") {
+    const IndexedMesh sphere = fixtures::uv_sphere(24, 48, 1.0);
+    std::vector<Eigen::Vector3d> pts, nrm;
+    CGAL::Point_set_3<fixtures::Kernel::Point_3, fixtures::Kernel::Vector_3> ps;
+    ps.add_normal_map();
+    std::vector<UserSample> user;
+    for (int i = 0; i < 400; ++i) {
+        // points at radius 1.1 on a Fibonacci sphere, rounded to float for the user struct
+        const double z = -1 + 2 * (i + 0.5) / 400, ph = i * 2.399963229728653;
+        const double rxy = std::sqrt(1 - z * z);
+        const Vec3 q(1.1 * rxy * std::cos(ph), 1.1 * rxy * std::sin(ph), 1.1 * z);
+        const Vec3 m = q.normalized();
+        user.push_back({{float(q.x()), float(q.y()), float(q.z())}, {float(m.x()), float(m.y()), float(m.z())}});
+        const UserSample& u = user.back();
+        const Vec3 p(u.xyz[0], u.xyz[1], u.xyz[2]), n(u.n[0], u.n[1], u.n[2]);
+        pts.push_back(p);
+        nrm.push_back(n);
+        ps.insert(fixtures::Kernel::Point_3(p.x(), p.y(), p.z()), fixtures::Kernel::Vector_3(n.x(), n.y(), n.z()));
+    }
+    const DistanceParams params{.samples = 5000, .seed = 3};
+    auto oriented = ks::with_normals(pts, nrm);
+    const auto ref = ks::compare_points(oriented, sphere, params);
+    const auto from_ps = ks::compare_points(ps, sphere, params);
+    const auto view = ks::project_points(user, &UserSample::xyz, &UserSample::n);
+    const auto from_user = ks::compare_points(view, sphere, params);
+    for (const auto* r : {&from_ps, &from_user}) {
+        INFO((r == &from_ps ? "Point_set_3" : "user struct"));
+        CHECK(same(r->a_to_b, ref.a_to_b));
+        CHECK(same(r->b_to_a, ref.b_to_a));
+        CHECK(r->normal_consistency == ref.normal_consistency);
+    }
+    // every point is 0.1 outside the unit sphere, up to the mesh's sagitta
+    CHECK(ref.a_to_b.mean >= 0.1 - 1e-6);  // float rounding of the points: ~1e-7
+    CHECK(ref.a_to_b.hausdorff <= 0.1 + sagitta_bound(sphere, 1.0) + 1e-6);
+    CHECK(ref.normal_consistency > 0.95);
 }
 
 TEST_CASE("compare: deterministic whatever the thread count, seed matters") {
