@@ -140,10 +140,11 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     // Every ball smaller than the distance to the nearest point is empty and passes
     // eq. (6) trivially, so the search starts there (far from the data this saves
     // the queries that would return nothing, then everything).
-    const Scalar d0 = std::sqrt(in.tree->nearest(out.c).squared_distance);
     Scalar r = r_min;
     query(r_min);
     if (pu_radius_ok(in, out.c, r_min, idx, dist)) {
+        // (only needed when the ball of radius r_min is empty)
+        const Scalar d0 = dist.empty() ? std::sqrt(in.tree->nearest(out.c).squared_distance) : Scalar(0);
         Scalar lo = std::max(r_min, std::min(d0, r_cap)), hi = lo;
         bool bracketed = false;
         while (hi < r_cap) {
