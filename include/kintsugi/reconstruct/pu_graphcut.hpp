@@ -80,6 +80,12 @@ struct PUGraphcutParams {
     /// that no constant k overcomes (the paper's admitted weakness, its Fig. 12). 10 is
     /// the paper's own "too few points" threshold (§2.3, smoothing).
     std::size_t min_support_points = 10;
+    /// After the cut (Labeling::graphcut only): connected inside regions of the
+    /// triangulation with fewer vertices than this fraction of the largest one become
+    /// outside, and enclosed outside regions (cavities) that small become inside.
+    /// Outliers that cluster by chance leave such specks — bubbles of a few
+    /// tetrahedra — that the constant k of eq. 8-9 keeps; 0 disables (the paper).
+    Scalar min_region_fraction = 0.01;
 };
 
 /// Result of reconstruct_pu_graphcut.
@@ -102,6 +108,7 @@ struct PUGraphcutResult {
     std::size_t sign_disagreements = 0;  ///< vertices whose label differs from the sign of f
     std::size_t same_sign_vertices = 0;  ///< mesh vertices placed by the same-sign rule
     std::size_t smoothed_vertices = 0;   ///< mesh vertices moved by the selective smoothing
+    std::size_t removed_regions = 0;     ///< small inside regions / cavities relabelled
     /// Per stage, in order: pu_octree, pu_cover, pu_index, triangulation, graph_cut,
     /// marching_tetrahedra, smoothing.
     std::vector<StageTiming> timings;
@@ -244,6 +251,8 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         std::vector<std::uint8_t> inside;
         if (params.labeling == Labeling::graphcut) {
             inside = graphcut_labels(tm, f_pu, f, is_outer, params.k, res.cut_value, params.control);
+            if (params.min_region_fraction > 0)
+                res.removed_regions = remove_small_regions(tm, is_outer, inside, params.min_region_fraction);
         } else {
             // PU alone: the sign of the field (outer layer outside).
             inside.resize(nv);

@@ -185,6 +185,70 @@ inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std:
     return inside;
 }
 
+/// Relabels small regions: connected sets (over the tet edges) of inside vertices with
+/// fewer than `fraction` x the vertices of the largest inside set become outside, and
+/// sets of outside vertices not connected to the outer layer (cavities) with fewer
+/// than that become inside. Returns the number of regions relabelled.
+inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<std::uint8_t>& forced_out,
+                                        std::vector<std::uint8_t>& inside, Scalar fraction) {
+    const std::size_t nv = tm.vertices.size();
+    std::vector<std::size_t> off(nv + 1, 0);
+    for (const auto& e : tm.edges) {
+        ++off[e[0] + 1];
+        ++off[e[1] + 1];
+    }
+    for (std::size_t v = 0; v < nv; ++v) off[v + 1] += off[v];
+    std::vector<Index> adj(off[nv]);
+    {
+        std::vector<std::size_t> fill(off.begin(), off.end() - 1);
+        for (const auto& e : tm.edges) {
+            adj[fill[e[0]]++] = e[1];
+            adj[fill[e[1]]++] = e[0];
+        }
+    }
+    constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
+    std::vector<std::size_t> region(nv, none);
+    std::vector<std::size_t> size;
+    std::vector<std::uint8_t> label, touches_outer;
+    std::vector<Index> stack;
+    for (std::size_t s = 0; s < nv; ++s) {
+        if (region[s] != none) continue;
+        const std::size_t id = size.size();
+        size.push_back(0);
+        label.push_back(inside[s]);
+        touches_outer.push_back(0);
+        region[s] = id;
+        stack.assign(1, s);
+        while (!stack.empty()) {
+            const Index v = stack.back();
+            stack.pop_back();
+            ++size[id];
+            if (forced_out[v]) touches_outer[id] = 1;
+            for (std::size_t k = off[v]; k < off[v + 1]; ++k) {
+                const Index w = adj[k];
+                if (region[w] == none && inside[w] == inside[s]) {
+                    region[w] = id;
+                    stack.push_back(w);
+                }
+            }
+        }
+    }
+    std::size_t largest = 0;
+    for (std::size_t r = 0; r < size.size(); ++r)
+        if (label[r]) largest = std::max(largest, size[r]);
+    const auto limit = static_cast<std::size_t>(fraction * static_cast<Scalar>(largest));
+    std::vector<std::uint8_t> flip(size.size(), 0);
+    std::size_t flipped = 0;
+    for (std::size_t r = 0; r < size.size(); ++r)
+        if (size[r] < limit && (label[r] || !touches_outer[r])) {
+            flip[r] = 1;
+            ++flipped;
+        }
+    for (std::size_t v = 0; v < nv; ++v)
+        if (flip[region[v]]) inside[v] = !inside[v];
+    return flipped;
+}
+
 /// Step 6, vertex placement on the field itself: the paper puts the vertex of a mixed
 /// edge where f(x) = 0. Marching tetrahedra interpolates f linearly between the two
 /// ends; here the zero is found on the PU field along the edge: f is sampled at
