@@ -17,16 +17,22 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_TEST
 cmake --build "$build" --target kintsugi_cli -j "$(nproc 2>/dev/null || echo 2)" >/dev/null
 ks="$build/examples/kintsugi"
 
-scan=tests/data/bun000_part.ply
+scans=data/bunny_scans_100k.ply
 echo
-echo "== 1. what is in the input: a real range scan of the Stanford bunny ($scan)"
-"$ks" info "$scan"
+echo "== 1. the input: 100,000 points of 9 registered range scans of the Stanford bunny ($scans)"
+"$ks" info "$scans"
 echo
-echo "== 2. estimate and consistently orient normals (k = 18, jet fitting)"
-"$ks" normals "$scan" "$out/bun000_normals.ply" --k 18 --method jet
+echo "== 2. add 10 % uniform outliers in the enlarged bounding box (seeded, so the run is repeatable)"
+"$ks" perturb "$scans" "$out/bunny_scans_outliers.ply" --outliers 0.1 --seed 1
 echo
-echo "== 3. how far the scan is from the reconstructed bunny's decimated mesh"
-"$ks" compare "$scan" tests/data/bun_zipper_res4.ply --samples 50000
+echo "== 3. outlier-robust reconstruction: partition-of-unity field + graph cut (Nagai et al.)"
+"$ks" reconstruct "$out/bunny_scans_outliers.ply" "$out/bunny_reconstructed.ply" --method pu-graphcut
+echo
+echo "== 4. what came out"
+"$ks" info "$out/bunny_reconstructed.ply"
+echo
+echo "== 5. feature-aware smoothing of a noisy CAD block (normal voting tensor + bilateral filters)"
+"$ks" smooth tests/data/smooth/block_noisy.ply "$out/block_smoothed.ply" --features "$out/block_sharp_edges.ply"
 echo
 echo "Output written to $out:"
 ls -l "$out"
