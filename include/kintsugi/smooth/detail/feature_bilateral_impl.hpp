@@ -12,7 +12,6 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
-#include <kintsugi/spatial/kd_tree.hpp>
 
 #include <Eigen/Eigenvalues>
 
@@ -21,6 +20,8 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -85,12 +86,120 @@ inline Scalar mean_edge_length(const std::vector<Vec3>& V, const MeshTopology& t
     return sum.second ? sum.first / static_cast<Scalar>(sum.second) : Scalar(0);
 }
 
-/// Neighbours of c in the axis-aligned cube of half side h: a radius query of radius
-/// h·√3 through the kd-tree, then the cube test. Sorted by distance, ties by index.
-inline void cube_query(const KdTree& tree, const Vec3& c, Scalar h, std::vector<Neighbor>& out) {
-    tree.radius_search_squared(c, 3 * h * h, out);
-    std::erase_if(out, [&](const Neighbor& n) { return (tree.point(n.index) - c).cwiseAbs().maxCoeff() > h; });
-}
+/// Uniform grid over a point set for axis-aligned cube queries (the filters' and the
+/// voting's neighbourhoods are cubes of a fixed size). Cells of side `cell` (the
+/// usual query half side, so a query visits at most 3×3×3 cells) are keyed by their
+/// integer coordinates and found through an open-addressing hash table, so memory is
+/// linear in the points whatever the extent. The points are stored sorted by cell and,
+/// within a cell, by index: a query visits its neighbours in an order fixed by the
+/// geometry alone (no sorting per query, results independent of the thread count).
+class CubeGrid {
+public:
+    CubeGrid() = default;
+    /// Points i with (*keep_if_positive)[i] <= 0 (when given) are left out.
+    CubeGrid(const std::vector<Vec3>& pts, Scalar cell, const std::vector<Scalar>* keep_if_positive = nullptr) {
+        build(pts, cell, keep_if_positive);
+    }
+
+    void build(const std::vector<Vec3>& pts, Scalar cell, const std::vector<Scalar>* keep_if_positive = nullptr) {
+        const std::size_t n = pts.size();
+        lo_ = Vec3::Constant(std::numeric_limits<Scalar>::max());
+        Vec3 hi = Vec3::Constant(std::numeric_limits<Scalar>::lowest());
+        for (std::size_t i = 0; i < n; ++i) {
+            lo_ = lo_.cwiseMin(pts[i]);
+            hi = hi.cwiseMax(pts[i]);
+        }
+        if (n == 0) lo_ = hi = Vec3::Zero();
+        // 21 bits per axis in the key: enlarge the cells if the extent needs more.
+        const Scalar extent = (hi - lo_).maxCoeff();
+        cell_ = std::max({cell, extent / Scalar((1 << 20) - 2), std::numeric_limits<Scalar>::min()});
+        inv_ = 1 / cell_;
+        std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+        order.reserve(n);
+        for (std::size_t i = 0; i < n; ++i)
+            if (!keep_if_positive || (*keep_if_positive)[i] > 0)
+                order.emplace_back(key(coord(pts[i])), static_cast<std::uint32_t>(i));
+        std::sort(order.begin(), order.end());
+        index_.resize(order.size());
+        point_.resize(order.size());
+        start_.clear();
+        std::vector<std::uint64_t> keys;
+        for (std::size_t k = 0; k < order.size(); ++k) {
+            if (k == 0 || order[k].first != order[k - 1].first) {
+                keys.push_back(order[k].first);
+                start_.push_back(static_cast<std::uint32_t>(k));
+            }
+            index_[k] = order[k].second;
+            point_[k] = pts[order[k].second];
+        }
+        start_.push_back(static_cast<std::uint32_t>(order.size()));
+        std::size_t cap = 16;
+        while (cap < 2 * keys.size()) cap *= 2;
+        mask_ = cap - 1;
+        table_key_.assign(cap, empty_);
+        table_cell_.assign(cap, 0);
+        for (std::size_t c = 0; c < keys.size(); ++c) {
+            std::size_t h = slot(keys[c]);
+            while (table_key_[h] != empty_) h = (h + 1) & mask_;
+            table_key_[h] = keys[c];
+            table_cell_[h] = static_cast<std::uint32_t>(c);
+        }
+    }
+
+    /// Calls f(index, squared distance) for every point in the cube of half side h
+    /// centred at c (boundary included).
+    template <class F>
+    void for_each_in_cube(const Vec3& c, Scalar h, F&& f) const {
+        if (index_.empty()) return;
+        const Vec3 a = (c - lo_) * inv_;
+        const Scalar r = h * inv_;
+        std::array<std::int64_t, 3> l{}, u{};
+        for (int k = 0; k < 3; ++k) {
+            l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(a[k] - r)));
+            u[k] = std::min<std::int64_t>(max_coord_, static_cast<std::int64_t>(std::floor(a[k] + r)));
+            if (!(a[k] + r >= 0) || u[k] < l[k]) return;
+        }
+        for (std::int64_t z = l[2]; z <= u[2]; ++z)
+            for (std::int64_t y = l[1]; y <= u[1]; ++y)
+                for (std::int64_t x = l[0]; x <= u[0]; ++x) {
+                    const std::uint64_t k = key({x, y, z});
+                    std::size_t s = slot(k);
+                    while (table_key_[s] != k) {
+                        if (table_key_[s] == empty_) break;
+                        s = (s + 1) & mask_;
+                    }
+                    if (table_key_[s] != k) continue;
+                    const std::uint32_t cidx = table_cell_[s];
+                    for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
+                        const Vec3 d = point_[j] - c;
+                        if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
+                    }
+                }
+    }
+
+private:
+    static constexpr std::uint64_t empty_ = ~std::uint64_t{0};
+    static constexpr std::int64_t max_coord_ = (std::int64_t{1} << 21) - 1;
+    std::array<std::int64_t, 3> coord(const Vec3& p) const {
+        const Vec3 a = (p - lo_) * inv_;
+        std::array<std::int64_t, 3> g{};
+        for (int k = 0; k < 3; ++k) g[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor(a[k])), 0, max_coord_);
+        return g;
+    }
+    static std::uint64_t key(const std::array<std::int64_t, 3>& g) {
+        return static_cast<std::uint64_t>(g[0]) | (static_cast<std::uint64_t>(g[1]) << 21) |
+               (static_cast<std::uint64_t>(g[2]) << 42);
+    }
+    std::size_t slot(std::uint64_t k) const {
+        return static_cast<std::size_t>((k * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
+    }
+    Vec3 lo_ = Vec3::Zero();
+    Scalar cell_ = 1, inv_ = 1;
+    std::vector<std::uint32_t> index_, start_, table_cell_;
+    std::vector<Vec3> point_;
+    std::vector<std::uint64_t> table_key_;
+    std::size_t mask_ = 0;
+};
 
 /// Gaussian exp(-x²/(2σ²)) (unnormalised: the filters normalise by k_r).
 inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma * sigma)); }
@@ -99,9 +208,9 @@ inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma 
 /// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
 /// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°).
 /// Applied `iterations` times to `normals` with the positions fixed: the cube
-/// neighbourhoods and their spatial weights a_t*·f are found once (two kd-tree
+/// neighbourhoods and their spatial weights a_t*·f are found once (two grid
 /// passes, CSR arrays linear in the mesh) and reused by every pass.
-inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const KdTree& tree, std::vector<Vec3> normals,
+inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& grid, std::vector<Vec3> normals,
                                         Scalar scale, std::size_t iterations, Progress& progress, double from,
                                         double to) {
     const std::size_t nf = normals.size();
@@ -110,26 +219,21 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const KdTree& tre
     const double q1 = from + (to - from) * 0.15, q2 = from + (to - from) * 0.3;
     std::vector<std::size_t> offset(nf + 1, 0);
     blocked_for(progress, nf, from, q1, [&](std::size_t t) {
-        thread_local std::vector<Neighbor> nb;
         if (g.area[t] == 0) return;
-        cube_query(tree, g.centroid[t], h, nb);
         std::size_t n = 0;
-        for (const Neighbor& q : nb) n += g.area[q.index] > 0;
+        grid.for_each_in_cube(g.centroid[t], h, [&](Index, Scalar) { ++n; });
         offset[t + 1] = n;
     });
     for (std::size_t t = 0; t < nf; ++t) offset[t + 1] += offset[t];
     std::vector<std::uint32_t> index(offset[nf]);
     std::vector<float> weight(offset[nf]);
     blocked_for(progress, nf, q1, q2, [&](std::size_t t) {
-        thread_local std::vector<Neighbor> nb;
         if (g.area[t] == 0) return;
-        cube_query(tree, g.centroid[t], h, nb);
         std::size_t k = offset[t];
-        for (const Neighbor& q : nb)
-            if (g.area[q.index] > 0) {
-                index[k] = static_cast<std::uint32_t>(q.index);
-                weight[k++] = static_cast<float>(g.area[q.index] * gauss(q.squared_distance, s_mf));
-            }
+        grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) {
+            index[k] = static_cast<std::uint32_t>(q);
+            weight[k++] = static_cast<float>(g.area[q] * gauss(d2, s_mf));
+        });
     });
     std::vector<Vec3> cur;
     for (std::size_t k = 0; k < iterations; ++k) {
@@ -186,20 +290,18 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
 
     const Scalar h = st.cube * mean_edge / 2;  // half side of the voting cube
     const Scalar falloff = h;                  // distance decay of the votes (see header)
-    const KdTree tree(geo.centroid, 0);
+    const CubeGrid grid(geo.centroid, std::max(h, st.prefilter_scale * mean_edge), &geo.area);
     const double mid = from + (to - from) * (st.prefilter_iterations ? 0.5 : 0.0);
     const std::vector<Vec3> N = st.prefilter_iterations
-        ? filter_normals(geo, tree, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid)
+        ? filter_normals(geo, grid, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid)
         : geo.normal;
     const auto& A = geo.area;
     blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
-        thread_local std::vector<Neighbor> nb;
-        cube_query(tree, V[v], h, nb);
         Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
-        for (const Neighbor& q : nb) {
-            const Scalar w = A[q.index] * std::exp(-std::sqrt(q.squared_distance) / falloff);
-            T.noalias() += w * N[q.index] * N[q.index].transpose();
-        }
+        grid.for_each_in_cube(V[v], h, [&](Index q, Scalar d2) {
+            const Scalar w = A[q] * std::exp(-std::sqrt(d2) / falloff);
+            T.noalias() += w * N[q] * N[q].transpose();
+        });
         const Scalar tr = T.trace();
         if (!(tr > 0) || !std::isfinite(tr)) return;  // no face around: not a feature
         T /= tr;
@@ -274,25 +376,22 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
         len[e] = (q - p).norm();
         dir[e] = len[e] > 0 ? Vec3((q - p) / len[e]) : Vec3::Zero();
     }
-    const KdTree tree(c, 0);
+    const CubeGrid grid(c, st.a * L / 2, &len);
     const Scalar s_mef = st.a * L / 2, s_meg = 0.6, s_ef = st.a * L, s_eg = st.b * L;
     const Scalar h = s_mef;  // the edge cube has side 2σ_mef
     const double mid = from + (to - from) / 2;
 
     // 1) directions: r = e, q = e*, I = d_e* (sign-aligned with d_e), w = l_e*.
     blocked_for(progress, ne, from, mid, [&](std::size_t e) {
-        thread_local std::vector<Neighbor> nb;
         dir_f[e] = dir[e];
         if (len[e] == 0) return;
-        cube_query(tree, c[e], h, nb);
         Vec3 acc = Vec3::Zero();
-        for (const Neighbor& q : nb) {
-            if (len[q.index] == 0) continue;
-            const Vec3 dq = dir[e].dot(dir[q.index]) < 0 ? Vec3(-dir[q.index]) : dir[q.index];
-            const Scalar Y = (dir[e] - dq).norm();
-            if (Y > 1) continue;  // another feature branch (corner): g = 0
-            acc += len[q.index] * gauss(q.squared_distance, s_mef) * gauss(Y * Y, s_meg) * dq;
-        }
+        grid.for_each_in_cube(c[e], h, [&](Index q, Scalar d2) {
+            const Vec3 dq = dir[e].dot(dir[q]) < 0 ? Vec3(-dir[q]) : dir[q];
+            const Scalar Y2 = (dir[e] - dq).squaredNorm();
+            if (Y2 > 1) return;  // another feature branch (corner): g = 0
+            acc += len[q] * gauss(d2, s_mef) * gauss(Y2, s_meg) * dq;
+        });
         const Scalar n = acc.norm();
         if (n > 0 && std::isfinite(n)) dir_f[e] = acc / n;
     });
@@ -300,20 +399,17 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
     // 2) vertices: r = i, q = e*, I = Π_e* (projection of p_i on the filtered line of e*), w = l_e*.
     std::vector<Vec3> out(edge_vertices.size());
     blocked_for(progress, edge_vertices.size(), mid, to, [&](std::size_t k) {
-        thread_local std::vector<Neighbor> nb;
         const Vec3& p = V[edge_vertices[k]];
         out[k] = p;
-        cube_query(tree, p, h, nb);
         Vec3 acc = Vec3::Zero();
         Scalar kr = 0;
-        for (const Neighbor& q : nb) {
-            if (len[q.index] == 0) continue;
-            const Vec3& dq = dir_f[q.index];
-            const Vec3 proj = c[q.index] + (p - c[q.index]).dot(dq) * dq;
-            const Scalar w = len[q.index] * gauss(q.squared_distance, s_ef) * gauss((proj - p).squaredNorm(), s_eg);
+        grid.for_each_in_cube(p, h, [&](Index q, Scalar d2) {
+            const Vec3& dq = dir_f[q];
+            const Vec3 proj = c[q] + (p - c[q]).dot(dq) * dq;
+            const Scalar w = len[q] * gauss(d2, s_ef) * gauss((proj - p).squaredNorm(), s_eg);
             acc += w * proj;
             kr += w;
-        }
+        });
         if (kr > 0 && std::isfinite(kr)) out[k] = acc / kr;
     });
     for (std::size_t k = 0; k < edge_vertices.size(); ++k) V[edge_vertices[k]] = out[k];
@@ -327,13 +423,13 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     FaceGeometry g;
     compute_face_geometry(V, F, g);
     const std::size_t nv = V.size();
-    const KdTree tree(g.centroid, 0);
+    CubeGrid grid(g.centroid, st.c * L, &g.area);
     const Scalar s_f = st.c * L, s_g = st.d * L;
     const Scalar h = s_f;  // the face cube has side 2σ_f
     const double mid = from + (to - from) / 2;
 
     // 3) normals, normal_iterations times.
-    std::vector<Vec3> nf_ = filter_normals(g, tree, g.normal, st.c * L, st.normal_iterations, progress, from, mid);
+    std::vector<Vec3> nf_ = filter_normals(g, grid, g.normal, st.c * L, st.normal_iterations, progress, from, mid);
 
     // 4) vertices: r = i, q = t* (same cube, around p_i); I = Π_t, w = a_t*. Repeated
     // vertex_iterations times with the filtered normals n'_t, the centroids following
@@ -341,27 +437,25 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     std::vector<Vec3> out(nv);
     const std::size_t vit = std::max<std::size_t>(st.vertex_iterations, 1);
     for (std::size_t k = 0; k < vit; ++k) {
-        if (k > 0) compute_face_geometry(V, F, g);
-        const KdTree vtree = k > 0 ? KdTree(g.centroid, 0) : KdTree();
-        const KdTree& tr = k > 0 ? vtree : tree;
+        if (k > 0) {
+            compute_face_geometry(V, F, g);
+            grid.build(g.centroid, st.c * L, &g.area);
+        }
         blocked_for(progress, nv, mid + (to - mid) * static_cast<double>(k) / static_cast<double>(vit),
                     mid + (to - mid) * static_cast<double>(k + 1) / static_cast<double>(vit), [&](std::size_t i) {
-            thread_local std::vector<Neighbor> nb;
             const Vec3& p = V[i];
             out[i] = p;
             if (fixed[i] || !has_face[i]) return;
-            cube_query(tr, p, h, nb);
             Vec3 acc = Vec3::Zero();
             Scalar kr = 0;
-            for (const Neighbor& q : nb) {
-                if (g.area[q.index] == 0) continue;
-                const Vec3& n = nf_[q.index];
-                const Scalar off = (p - g.centroid[q.index]).dot(n);
+            grid.for_each_in_cube(p, h, [&](Index q, Scalar d2) {
+                const Vec3& n = nf_[q];
+                const Scalar off = (p - g.centroid[q]).dot(n);
                 const Vec3 proj = p - off * n;
-                const Scalar w = g.area[q.index] * gauss(q.squared_distance, s_f) * gauss(off * off, s_g);
+                const Scalar w = g.area[q] * gauss(d2, s_f) * gauss(off * off, s_g);
                 acc += w * proj;
                 kr += w;
-            }
+            });
             if (kr > 0 && std::isfinite(kr)) out[i] = acc / kr;
         });
         V.swap(out);
