@@ -161,6 +161,7 @@ struct FeatureBilateralParams {
     std::size_t presmooth_iterations = 3;  ///< see SharpFeatureParams
     Scalar presmooth_range = 0.45;         ///< see SharpFeatureParams
     bool keep_edge_vertices = false;  ///< true: filter 4 leaves sharp-edge vertices alone
+    bool separate_features = true;    ///< sharp edges bound the face filters' neighbourhoods (see above)
     RunControl control{};
 };
 
@@ -342,6 +343,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         const fbs::FilterSettings fs{params.a, params.b, params.c, params.d, params.edge_iterations,
                                      params.face_iterations, params.features, params.normal_iterations,
                                      params.vertex_iterations};
+        fbs::Barriers barriers;
         if (params.features) {
             progress.stage("features", 0.02, 0.45);
             auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress);
@@ -359,13 +361,20 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
                 fbs::edge_iteration(m.vertices, fd.sharp_edges, edge_vertices, L, fs, progress,
                                     static_cast<double>(it) / n, static_cast<double>(it + 1) / n);
             }
+            if (params.separate_features) {
+                barriers.topo = &topo;
+                barriers.sharp_edge.assign(topo.num_edges(), 0);
+                for (const auto& e : fd.sharp_edges)
+                    if (const auto id = topo.find_edge(e[0], e[1])) barriers.sharp_edge[*id] = 1;
+                barriers.feature_vertices = edge_vertices;
+            }
             result.features = fbs::to_public(std::move(fd), L);
         }
         progress.stage("face smoothing", params.features ? 0.5 : 0.02, 1.0);
         for (std::size_t it = 0; it < params.face_iterations; ++it) {
             const double n = static_cast<double>(params.face_iterations);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
-                                static_cast<double>(it + 1) / n);
+                                static_cast<double>(it + 1) / n, &barriers);
         }
         result.timings = progress.finish();
     } catch (const detail::cancelled_exception&) {

@@ -15,11 +15,16 @@
 
 #include <Eigen/Eigenvalues>
 
+#ifdef KINTSUGI_PARALLEL_TBB
+#include <tbb/parallel_sort.h>
+#endif
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <limits>
 #include <utility>
 #include <string>
@@ -119,7 +124,11 @@ public:
         for (std::size_t i = 0; i < n; ++i)
             if (!keep_if_positive || (*keep_if_positive)[i] > 0)
                 order.emplace_back(key(coord(pts[i])), static_cast<std::uint32_t>(i));
+#ifdef KINTSUGI_PARALLEL_TBB
+        tbb::parallel_sort(order.begin(), order.end());  // unique (key, index) pairs: one result
+#else
         std::sort(order.begin(), order.end());
+#endif
         index_.resize(order.size());
         point_.resize(order.size());
         start_.clear();
@@ -144,6 +153,31 @@ public:
             table_key_[h] = keys[c];
             table_cell_[h] = static_cast<std::uint32_t>(c);
         }
+        // The non-empty cells among the 3×3×3 around each cell, in (z, y, x) order: a
+        // query of half side ≤ cell from a point inside a cell visits only those.
+        const std::size_t nc = keys.size();
+        std::vector<std::array<std::uint32_t, 27>> nbr(nc);
+        std::vector<std::uint8_t> count(nc, 0);
+        parallel_for(0, nc, [&](std::size_t c) {
+            const std::array<std::int64_t, 3> g{static_cast<std::int64_t>(keys[c] & mask21_),
+                                                static_cast<std::int64_t>((keys[c] >> 21) & mask21_),
+                                                static_cast<std::int64_t>(keys[c] >> 42)};
+            std::uint8_t k = 0;
+            for (std::int64_t z = g[2] - 1; z <= g[2] + 1; ++z)
+                for (std::int64_t y = g[1] - 1; y <= g[1] + 1; ++y)
+                    for (std::int64_t x = g[0] - 1; x <= g[0] + 1; ++x) {
+                        if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
+                        const std::uint32_t id = find({x, y, z});
+                        if (id != none_) nbr[c][k++] = id;
+                    }
+            count[c] = k;
+        }, 256);
+        nbr_start_.assign(nc + 1, 0);
+        for (std::size_t c = 0; c < nc; ++c) nbr_start_[c + 1] = nbr_start_[c] + count[c];
+        nbr_cell_.resize(nbr_start_[nc]);
+        parallel_for(0, nc, [&](std::size_t c) {
+            std::copy_n(nbr[c].begin(), count[c], nbr_cell_.begin() + nbr_start_[c]);
+        }, 256);
     }
 
     /// Calls f(index, squared distance) for every point in the cube of half side h
@@ -159,26 +193,40 @@ public:
             u[k] = std::min<std::int64_t>(max_coord_, static_cast<std::int64_t>(std::floor(a[k] + r)));
             if (!(a[k] + r >= 0) || u[k] < l[k]) return;
         }
+        auto visit = [&](std::uint32_t cidx) {
+            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
+                const Vec3 d = point_[j] - c;
+                if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
+            }
+        };
+        // Usual case: the query point lies in a non-empty cell and h ≤ cell, so the cube
+        // is covered by that cell's precomputed neighbours (one hash look-up).
+        if (h <= cell_ && a.minCoeff() >= 0 && a.maxCoeff() < static_cast<Scalar>(max_coord_)) {
+            const std::uint32_t home = find(coord(c));
+            if (home != none_) {
+                for (std::uint32_t k = nbr_start_[home]; k < nbr_start_[home + 1]; ++k) visit(nbr_cell_[k]);
+                return;
+            }
+        }
         for (std::int64_t z = l[2]; z <= u[2]; ++z)
             for (std::int64_t y = l[1]; y <= u[1]; ++y)
                 for (std::int64_t x = l[0]; x <= u[0]; ++x) {
-                    const std::uint64_t k = key({x, y, z});
-                    std::size_t s = slot(k);
-                    while (table_key_[s] != k) {
-                        if (table_key_[s] == empty_) break;
-                        s = (s + 1) & mask_;
-                    }
-                    if (table_key_[s] != k) continue;
-                    const std::uint32_t cidx = table_cell_[s];
-                    for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
-                        const Vec3 d = point_[j] - c;
-                        if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
-                    }
+                    const std::uint32_t cidx = find({x, y, z});
+                    if (cidx != none_) visit(cidx);
                 }
     }
 
 private:
     static constexpr std::uint64_t empty_ = ~std::uint64_t{0};
+    static constexpr std::uint32_t none_ = ~std::uint32_t{0};
+    static constexpr std::uint64_t mask21_ = (std::uint64_t{1} << 21) - 1;
+    std::uint32_t find(const std::array<std::int64_t, 3>& g) const {
+        const std::uint64_t k = key(g);
+        for (std::size_t s = slot(k);; s = (s + 1) & mask_) {
+            if (table_key_[s] == k) return table_cell_[s];
+            if (table_key_[s] == empty_) return none_;
+        }
+    }
     static constexpr std::int64_t max_coord_ = (std::int64_t{1} << 21) - 1;
     std::array<std::int64_t, 3> coord(const Vec3& p) const {
         const Vec3 a = (p - lo_) * inv_;
@@ -195,7 +243,8 @@ private:
     }
     Vec3 lo_ = Vec3::Zero();
     Scalar cell_ = 1, inv_ = 1;
-    std::vector<std::uint32_t> index_, start_, table_cell_;
+    std::vector<std::uint32_t> index_, start_, table_cell_, nbr_cell_;
+    std::vector<std::size_t> nbr_start_;
     std::vector<Vec3> point_;
     std::vector<std::uint64_t> table_key_;
     std::size_t mask_ = 0;
@@ -204,6 +253,138 @@ private:
 /// Gaussian exp(-x²/(2σ²)) (unnormalised: the filters normalise by k_r).
 inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma * sigma)); }
 
+/// Gaussian exp(-x²/(2σ²)) for x² in [0, 1], tabulated (1024 intervals, linear
+/// interpolation: relative error below 1e-6 for σ ≥ 0.3); the range weight of
+/// filters 1 and 3, whose x² never exceeds 1 (g = 0 beyond).
+class UnitGauss {
+public:
+    explicit UnitGauss(Scalar sigma) {
+        for (std::size_t k = 0; k <= n_; ++k) table_[k] = gauss(static_cast<Scalar>(k) / n_, sigma);
+        table_[n_ + 1] = table_[n_];
+    }
+    Scalar operator()(Scalar x2) const {
+        const Scalar u = std::clamp(x2, Scalar(0), Scalar(1)) * n_;
+        const std::size_t k = static_cast<std::size_t>(u);
+        const Scalar t = u - static_cast<Scalar>(k);
+        return table_[k] + t * (table_[k + 1] - table_[k]);
+    }
+
+private:
+    static constexpr std::size_t n_ = 1024;
+    std::array<Scalar, n_ + 2> table_{};
+};
+
+/// Neighbour lists in CSR form (indices and weights), e.g. the cube neighbourhoods
+/// of every face with their spatial weights.
+struct Neighbourhoods {
+    std::vector<std::size_t> offset;  // n + 1
+    std::vector<std::uint32_t> index;
+    std::vector<float> weight;
+};
+
+/// Builds the lists in one pass: gather(i, push) calls push(q, w) for each neighbour q
+/// of i. Items are gathered in parallel in fixed chunks of 2048 and then concatenated,
+/// so the lists do not depend on the thread count.
+template <class Gather>
+void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress, double from, double to,
+                          Gather&& gather) {
+    constexpr std::size_t chunk = 2048;
+    const std::size_t nc = (n + chunk - 1) / chunk;
+    struct Part {
+        std::vector<std::uint32_t> count, index;
+        std::vector<float> weight;
+    };
+    std::vector<Part> parts(nc);
+    const double mid = from + (to - from) * 0.9;
+    const std::size_t blocks = std::clamp<std::size_t>(nc / 4, 1, 20);
+    for (std::size_t blk = 0; blk < blocks; ++blk) {
+        parallel_for(nc * blk / blocks, nc * (blk + 1) / blocks, [&](std::size_t c) {
+            const std::size_t first = c * chunk, last = std::min(n, first + chunk);
+            Part& part = parts[c];
+            part.count.resize(last - first);
+            for (std::size_t i = first; i < last; ++i) {
+                const std::size_t before = part.index.size();
+                gather(i, [&](Index q, Scalar w) {
+                    part.index.push_back(static_cast<std::uint32_t>(q));
+                    part.weight.push_back(static_cast<float>(w));
+                });
+                part.count[i - first] = static_cast<std::uint32_t>(part.index.size() - before);
+            }
+        }, 1);
+        progress.update(from + (mid - from) * static_cast<double>(blk + 1) / static_cast<double>(blocks));
+    }
+    std::vector<std::size_t> base(nc + 1, 0);
+    for (std::size_t c = 0; c < nc; ++c) base[c + 1] = base[c] + parts[c].index.size();
+    out.offset.assign(n + 1, 0);
+    out.index.resize(base[nc]);
+    out.weight.resize(base[nc]);
+    parallel_for(0, nc, [&](std::size_t c) {
+        Part& part = parts[c];
+        std::size_t o = base[c];
+        for (std::size_t i = 0; i < part.count.size(); ++i) {
+            o += part.count[i];
+            out.offset[c * chunk + i + 1] = o;
+        }
+        std::copy(part.index.begin(), part.index.end(), out.index.begin() + static_cast<std::ptrdiff_t>(base[c]));
+        std::copy(part.weight.begin(), part.weight.end(), out.weight.begin() + static_cast<std::ptrdiff_t>(base[c]));
+        part = Part{};
+    }, 1);
+    progress.update(to);
+}
+
+/// Sharp edges as barriers for the face filters (features = true): a face t* in the
+/// cube of r counts only when it is reached from r's own faces by a walk over faces
+/// inside the cube that crosses no sharp edge. Away from features (no sharp-edge
+/// vertex near) this is every face of the cube and no walk is made.
+struct Barriers {
+    const MeshTopology* topo = nullptr;
+    std::vector<unsigned char> sharp_edge;  // by topology edge id
+    std::vector<Index> feature_vertices;     // vertices of sharp edges (for the "near" test)
+    [[nodiscard]] bool active() const { return topo != nullptr && !feature_vertices.empty(); }
+};
+
+/// Marks (with the current stamp) the faces reachable from `seeds` over non-sharp
+/// edges with centroid in the cube of half side h around c. Returns the calling
+/// thread's marks and the stamp: face q was reached iff marks[q] == stamp.
+struct Reach {
+    const std::vector<std::uint32_t>* marks;
+    std::uint32_t stamp;
+    [[nodiscard]] bool operator()(Index q) const { return (*marks)[q] == stamp; }
+};
+inline Reach reach_faces(const Barriers& b, const std::vector<Vec3>& centroid, std::span<const Index> seeds,
+                                 const Vec3& c, Scalar h) {
+    thread_local std::vector<std::uint32_t> mark;
+    thread_local std::vector<Index> queue;
+    thread_local std::uint32_t stamp = 0;
+    thread_local const std::vector<Vec3>* owner = nullptr;
+    if (mark.size() != centroid.size() || owner != &centroid) {
+        mark.assign(centroid.size(), 0);
+        stamp = 0;
+        owner = &centroid;
+    }
+    if (++stamp == 0) {
+        std::fill(mark.begin(), mark.end(), 0);
+        stamp = 1;
+    }
+    queue.clear();
+    for (Index f : seeds)
+        if (mark[f] != stamp) {
+            mark[f] = stamp;
+            queue.push_back(f);
+        }
+    for (std::size_t k = 0; k < queue.size(); ++k) {
+        const Index f = queue[k];
+        for (Index e : b.topo->face_edges(f)) {
+            if (b.sharp_edge[e]) continue;
+            for (Index q : b.topo->edge_faces(e))
+                if (mark[q] != stamp && (centroid[q] - c).cwiseAbs().maxCoeff() <= h) {
+                    mark[q] = stamp;
+                    queue.push_back(q);
+                }
+        }
+    }
+    return {&mark, stamp};
+}
 /// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
 /// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
 /// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°).
@@ -212,29 +393,29 @@ inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma 
 /// passes, CSR arrays linear in the mesh) and reused by every pass.
 inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& grid, std::vector<Vec3> normals,
                                         Scalar scale, std::size_t iterations, Progress& progress, double from,
-                                        double to) {
+                                        double to, const Barriers* barriers = nullptr,
+                                        const std::vector<unsigned char>* near = nullptr) {
     const std::size_t nf = normals.size();
     if (iterations == 0 || nf == 0) return normals;
     const Scalar s_mf = scale / 2, s_mg = 0.6, h = scale;
-    const double q1 = from + (to - from) * 0.15, q2 = from + (to - from) * 0.3;
-    std::vector<std::size_t> offset(nf + 1, 0);
-    blocked_for(progress, nf, from, q1, [&](std::size_t t) {
+    const double q2 = from + (to - from) * 0.3;
+    Neighbourhoods nb;
+    build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& push) {
         if (g.area[t] == 0) return;
-        std::size_t n = 0;
-        grid.for_each_in_cube(g.centroid[t], h, [&](Index, Scalar) { ++n; });
-        offset[t + 1] = n;
+        if (barriers && (*near)[t]) {
+            const Index seed[1] = {t};
+            const Reach reached = reach_faces(*barriers, g.centroid, seed, g.centroid[t], h);
+            grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) {
+                if (reached(q)) push(q, g.area[q] * gauss(d2, s_mf));
+            });
+            return;
+        }
+        grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) { push(q, g.area[q] * gauss(d2, s_mf)); });
     });
-    for (std::size_t t = 0; t < nf; ++t) offset[t + 1] += offset[t];
-    std::vector<std::uint32_t> index(offset[nf]);
-    std::vector<float> weight(offset[nf]);
-    blocked_for(progress, nf, q1, q2, [&](std::size_t t) {
-        if (g.area[t] == 0) return;
-        std::size_t k = offset[t];
-        grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) {
-            index[k] = static_cast<std::uint32_t>(q);
-            weight[k++] = static_cast<float>(g.area[q] * gauss(d2, s_mf));
-        });
-    });
+    const auto& offset = nb.offset;
+    const auto& index = nb.index;
+    const auto& weight = nb.weight;
+    const UnitGauss range(s_mg);
     std::vector<Vec3> cur;
     for (std::size_t k = 0; k < iterations; ++k) {
         cur.swap(normals);
@@ -248,7 +429,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
                 const Vec3& nq = cur[index[j]];
                 const Scalar Y2 = (cur[t] - nq).squaredNorm();
                 if (Y2 > 1) continue;  // across a sharp edge: g = 0
-                acc += (static_cast<Scalar>(weight[j]) * gauss(Y2, s_mg)) * nq;
+                acc += (static_cast<Scalar>(weight[j]) * range(Y2)) * nq;
             }
             const Scalar n = acc.norm();
             if (n > 0 && std::isfinite(n)) normals[t] = acc / n;
@@ -419,17 +600,38 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 /// sharp edge when `fixed` marks them). One call = one iteration.
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
                            const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
-                           Progress& progress, double from, double to) {
+                           Progress& progress, double from, double to, const Barriers* barriers = nullptr) {
     FaceGeometry g;
     compute_face_geometry(V, F, g);
     const std::size_t nv = V.size();
     CubeGrid grid(g.centroid, st.c * L, &g.area);
+    // Faces and vertices whose cube may hold a sharp-edge vertex walk over the faces.
+    std::vector<unsigned char> near_face, near_vertex;
+    if (barriers && !barriers->active()) barriers = nullptr;
+    if (barriers) {
+        const Scalar reach = st.c * L + 2 * L;
+        std::vector<Vec3> points(barriers->feature_vertices.size());
+        for (std::size_t k = 0; k < points.size(); ++k) points[k] = V[barriers->feature_vertices[k]];
+        const CubeGrid fp(points, reach);
+        near_face.assign(F.size(), 0);
+        near_vertex.assign(nv, 0);
+        parallel_for(0, F.size(), [&](std::size_t t) {
+            bool any = false;
+            fp.for_each_in_cube(g.centroid[t], reach, [&](Index, Scalar) { any = true; });
+            near_face[t] = any;
+        }, 1024);
+        for (std::size_t t = 0; t < F.size(); ++t)
+            if (near_face[t])
+                for (Index v : F[t]) near_vertex[v] = 1;
+    }
     const Scalar s_f = st.c * L, s_g = st.d * L;
     const Scalar h = s_f;  // the face cube has side 2σ_f
+    const Scalar i2sf = 1 / (2 * s_f * s_f), i2sg = 1 / (2 * s_g * s_g);
     const double mid = from + (to - from) / 2;
 
     // 3) normals, normal_iterations times.
-    std::vector<Vec3> nf_ = filter_normals(g, grid, g.normal, st.c * L, st.normal_iterations, progress, from, mid);
+    std::vector<Vec3> nf_ = filter_normals(g, grid, g.normal, st.c * L, st.normal_iterations, progress, from, mid,
+                                           barriers, &near_face);
 
     // 4) vertices: r = i, q = t* (same cube, around p_i); I = Π_t, w = a_t*. Repeated
     // vertex_iterations times with the filtered normals n'_t, the centroids following
@@ -448,11 +650,14 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
             if (fixed[i] || !has_face[i]) return;
             Vec3 acc = Vec3::Zero();
             Scalar kr = 0;
+            Reach reached{nullptr, 0};
+            if (barriers && near_vertex[i]) reached = reach_faces(*barriers, g.centroid, barriers->topo->vertex_faces(i), p, h);
             grid.for_each_in_cube(p, h, [&](Index q, Scalar d2) {
+                if (reached.marks && !reached(q)) return;
                 const Vec3& n = nf_[q];
                 const Scalar off = (p - g.centroid[q]).dot(n);
                 const Vec3 proj = p - off * n;
-                const Scalar w = g.area[q] * gauss(d2, s_f) * gauss(off * off, s_g);
+                const Scalar w = g.area[q] * std::exp(-d2 * i2sf - off * off * i2sg);  // f·g
                 acc += w * proj;
                 kr += w;
             });
