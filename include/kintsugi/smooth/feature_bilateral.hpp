@@ -122,6 +122,9 @@ struct SharpFeatureParams {
     std::size_t presmooth_iterations = 3;
     /// Range scale d of that pre-smoothing (σ_g = d|e|).
     Scalar presmooth_range = 0.45;
+    /// Spatial scale c of the pre-smoothing's vertex filter (its normal filter uses
+    /// prefilter_scale), in mean edge lengths.
+    Scalar presmooth_vertex_scale = 1;
     RunControl control{};
 };
 
@@ -163,6 +166,7 @@ struct FeatureBilateralParams {
     bool crease_test = true;               ///< see SharpFeatureParams
     std::size_t presmooth_iterations = 3;  ///< see SharpFeatureParams
     Scalar presmooth_range = 0.45;         ///< see SharpFeatureParams
+    Scalar presmooth_vertex_scale = 1;     ///< see SharpFeatureParams
     bool keep_edge_vertices = false;  ///< true: filter 4 leaves sharp-edge vertices alone
     bool separate_features = true;    ///< sharp edges bound the face filters' neighbourhoods (see above)
     RunControl control{};
@@ -214,6 +218,7 @@ inline void check_detection(const std::string& fn, const SharpFeatureParams& p) 
     check_unit(fn, "direction_threshold", p.direction_threshold);
     check_positive(fn, "prefilter_scale", p.prefilter_scale);
     check_positive(fn, "presmooth_range", p.presmooth_range);
+    check_positive(fn, "presmooth_vertex_scale", p.presmooth_vertex_scale);
     check_count(fn, "prefilter_iterations", p.prefilter_iterations);
     check_count(fn, "presmooth_iterations", p.presmooth_iterations);
 }
@@ -240,6 +245,7 @@ inline FeatureData run_detection(const IndexedMesh& m, const MeshTopology& topo,
     pre.c = p.prefilter_scale;
     pre.d = p.presmooth_range;
     pre.normal_iterations = std::max<std::size_t>(p.prefilter_iterations, 1);
+    pre.vertex_c = p.presmooth_vertex_scale;
     return detect_features_presmoothed(m.vertices, m.faces, topo, L,
                                        {p.voting_cube, p.edge_threshold, p.direction_threshold,
                                         p.boundary_edges_sharp, p.prefilter_iterations, p.prefilter_scale,
@@ -391,7 +397,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
                                        params.direction_threshold,  params.boundary_edges_sharp,
                                        params.prefilter_iterations, params.prefilter_scale,
                                        params.crease_test,          params.presmooth_iterations,
-                                       params.presmooth_range,      {}};
+                                       params.presmooth_range,      params.presmooth_vertex_scale,
+                                       {}};
     fbs::check_positive(fn, "a", params.a);
     fbs::check_positive(fn, "b", params.b);
     fbs::check_positive(fn, "c", params.c);

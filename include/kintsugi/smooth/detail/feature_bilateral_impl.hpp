@@ -276,62 +276,53 @@ private:
     std::array<Scalar, n_ + 2> table_{};
 };
 
-/// Neighbour lists in CSR form (indices and weights), e.g. the cube neighbourhoods
-/// of every face with their spatial weights.
+/// Neighbour lists in CSR form (indices and single-precision weights), stored in
+/// fixed chunks of `chunk` items (each chunk its own CSR, filled by one task: no copy
+/// into one array, so the peak memory is the lists themselves).
 struct Neighbourhoods {
-    std::vector<std::size_t> offset;  // n + 1
-    std::vector<std::uint32_t> index;
-    std::vector<float> weight;
+    static constexpr std::size_t chunk = 2048;
+    struct Part {
+        std::vector<std::uint32_t> offset;  // items in the chunk + 1
+        std::vector<std::uint32_t> index;
+        std::vector<float> weight;
+    };
+    std::vector<Part> parts;
+    /// Calls f(q, w) for every neighbour q (weight w) of item i.
+    template <class F>
+    void for_each(std::size_t i, F&& f) const {
+        const Part& p = parts[i / chunk];
+        const std::size_t k = i % chunk;
+        for (std::uint32_t j = p.offset[k]; j < p.offset[k + 1]; ++j) f(p.index[j], p.weight[j]);
+    }
 };
 
-/// Builds the lists in one pass: gather(i, push) calls push(q, w) for each neighbour q
-/// of i. Items are gathered in parallel in fixed chunks of 2048 and then concatenated,
-/// so the lists do not depend on the thread count.
+/// Builds the lists: gather(i, push) calls push(q, w) for each neighbour q of i, in an
+/// order that depends on i alone. Chunks are filled in parallel; the lists do not
+/// depend on the thread count.
 template <class Gather>
 void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress, double from, double to,
                           Gather&& gather) {
-    constexpr std::size_t chunk = 2048;
+    constexpr std::size_t chunk = Neighbourhoods::chunk;
     const std::size_t nc = (n + chunk - 1) / chunk;
-    struct Part {
-        std::vector<std::uint32_t> count, index;
-        std::vector<float> weight;
-    };
-    std::vector<Part> parts(nc);
-    const double mid = from + (to - from) * 0.9;
+    out.parts.assign(nc, {});
     const std::size_t blocks = std::clamp<std::size_t>(nc / 4, 1, 20);
     for (std::size_t blk = 0; blk < blocks; ++blk) {
         parallel_for(nc * blk / blocks, nc * (blk + 1) / blocks, [&](std::size_t c) {
             const std::size_t first = c * chunk, last = std::min(n, first + chunk);
-            Part& part = parts[c];
-            part.count.resize(last - first);
+            Neighbourhoods::Part& part = out.parts[c];
+            part.offset.assign(last - first + 1, 0);
             for (std::size_t i = first; i < last; ++i) {
-                const std::size_t before = part.index.size();
                 gather(i, [&](Index q, Scalar w) {
                     part.index.push_back(static_cast<std::uint32_t>(q));
                     part.weight.push_back(static_cast<float>(w));
                 });
-                part.count[i - first] = static_cast<std::uint32_t>(part.index.size() - before);
+                part.offset[i - first + 1] = static_cast<std::uint32_t>(part.index.size());
             }
+            part.index.shrink_to_fit();
+            part.weight.shrink_to_fit();
         }, 1);
-        progress.update(from + (mid - from) * static_cast<double>(blk + 1) / static_cast<double>(blocks));
+        progress.update(from + (to - from) * static_cast<double>(blk + 1) / static_cast<double>(blocks));
     }
-    std::vector<std::size_t> base(nc + 1, 0);
-    for (std::size_t c = 0; c < nc; ++c) base[c + 1] = base[c] + parts[c].index.size();
-    out.offset.assign(n + 1, 0);
-    out.index.resize(base[nc]);
-    out.weight.resize(base[nc]);
-    parallel_for(0, nc, [&](std::size_t c) {
-        Part& part = parts[c];
-        std::size_t o = base[c];
-        for (std::size_t i = 0; i < part.count.size(); ++i) {
-            o += part.count[i];
-            out.offset[c * chunk + i + 1] = o;
-        }
-        std::copy(part.index.begin(), part.index.end(), out.index.begin() + static_cast<std::ptrdiff_t>(base[c]));
-        std::copy(part.weight.begin(), part.weight.end(), out.weight.begin() + static_cast<std::ptrdiff_t>(base[c]));
-        part = Part{};
-    }, 1);
-    progress.update(to);
 }
 
 /// Sharp edges as barriers for the face filters (features = true): a face t* in the
@@ -415,9 +406,6 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
         }
         grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) { push(q, g.area[q] * spatial(d2)); });
     });
-    const auto& offset = nb.offset;
-    const auto& index = nb.index;
-    const auto& weight = nb.weight;
     const GaussTable range(s_mg, 1);
     // The passes run in single precision (normals as padded float4: half the memory
     // traffic of the random neighbour reads); the result is renormalised in double.
@@ -430,12 +418,12 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
         blocked_for(progress, nf, a0, a1, [&](std::size_t t) {
             const N4 nt = cur[t];
             N4 acc = N4::Zero();
-            for (std::size_t j = offset[t]; j < offset[t + 1]; ++j) {
-                const N4& nq = cur[index[j]];
+            nb.for_each(t, [&](std::uint32_t q, float w) {
+                const N4& nq = cur[q];
                 const float Y2 = (nt - nq).squaredNorm();
-                if (Y2 > 1.f) continue;  // across a sharp edge: g = 0
-                acc += (weight[j] * static_cast<float>(range(Y2))) * nq;
-            }
+                if (Y2 > 1.f) return;  // across a sharp edge: g = 0
+                acc += (w * static_cast<float>(range(Y2))) * nq;
+            });
             const float n = acc.norm();
             nxt[t] = n > 0 && std::isfinite(n) ? N4(acc / n) : nt;
         });
@@ -551,6 +539,7 @@ struct FilterSettings {
     bool features = true;
     std::size_t normal_iterations = 1;
     std::size_t vertex_iterations = 1;
+    Scalar vertex_c = 0;  // spatial scale of filter 4 when not c (0: c)
 };
 
 /// Filters 1) and 2): sharp-edge directions, then sharp-edge vertices. Moves only the
@@ -635,7 +624,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
             if (near_face[t])
                 for (Index v : F[t]) near_vertex[v] = 1;
     }
-    const Scalar s_f = st.c * L, s_g = st.d * L;
+    const Scalar s_f = (st.vertex_c > 0 ? st.vertex_c : st.c) * L, s_g = st.d * L;
     const Scalar h = s_f;  // the face cube has side 2σ_f
     // f over the whole cube; g tabulated to 8σ_g (beyond, e^-32 < 1e-13: 0).
     const GaussTable spatial(s_f, 3 * h * h), range(s_g, 64 * s_g * s_g);
