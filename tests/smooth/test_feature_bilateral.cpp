@@ -454,8 +454,10 @@ TEST_CASE("real data: Block0.4 (guided denoising) beats Taubin, smooth_shape and
             << ", features=false " << m_plain.mean_normal_angle_deg << " / " << m_plain.vertex_rms / L << ", Taubin "
             << m_taubin.mean_normal_angle_deg << " / " << m_taubin.vertex_rms / L << ", smooth_shape "
             << m_shape.mean_normal_angle_deg << " / " << m_shape.vertex_rms / L);
-    CHECK(m_ours.mean_normal_angle_deg < 9.0);
-    CHECK(m_ours.mean_normal_angle_deg < m_plain.mean_normal_angle_deg);
+    CHECK(m_ours.mean_normal_angle_deg < 6.5);
+    // The feature handling matters: sharp edges bounding the face filters' cubes take
+    // more than a degree off the normal error of the same filters without features.
+    CHECK(m_ours.mean_normal_angle_deg < m_plain.mean_normal_angle_deg - 1.0);
     CHECK(m_ours.mean_normal_angle_deg < m_taubin.mean_normal_angle_deg);
     CHECK(m_ours.mean_normal_angle_deg < m_shape.mean_normal_angle_deg);
     CHECK(m_ours.vertex_rms < m_plain.vertex_rms);
@@ -483,14 +485,9 @@ TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers"
         MESSAGE(std::string(name) << ": ours " << mo.mean_normal_angle_deg << " deg / " << mo.vertex_rms << ", features=false "
                      << mp.mean_normal_angle_deg << " / " << mp.vertex_rms << ", Taubin(30) "
                      << mt.mean_normal_angle_deg << " / " << mt.vertex_rms);
-        if (std::string(name) == "SharpSphere0.3") {
-            CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg);
-        } else {
-            // Known gap: Twelve's creases are 63°, at the 60° cut-off (Y > 1) of the
-            // normal filter, so with this noise they are not found and get rounded;
-            // Taubin's normal error is then about 0.5° lower. Held within 1°.
-            CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg + 1.0);
-        }
+        // Twelve's 63° creases are not found under its impulsive noise (see the header);
+        // the margin over Taubin there is about 0.15°.
+        CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg);
         CHECK(mo.vertex_rms < mt.vertex_rms);
         CHECK(mo.mean_normal_angle_deg <= mp.mean_normal_angle_deg);
         CHECK(mo.vertex_rms <= mp.vertex_rms);

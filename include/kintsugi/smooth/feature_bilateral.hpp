@@ -151,7 +151,7 @@ struct FeatureBilateralParams {
     Scalar a = 2;    ///< edge spatial scale: σ_mef = a|e|/2, σ_ef = a|e| (paper: 2)
     Scalar b = 0.1;  ///< edge range scale: σ_eg = b|e| (paper: 0.1)
     Scalar c = 1;    ///< face spatial scale: σ_mf = c|e|/2, σ_f = c|e| (paper: 2; measured, see above)
-    Scalar d = 0.2;  ///< face range scale: σ_g = d|e| (paper: 0.1; measured, see above)
+    Scalar d = 0.14;  ///< face range scale: σ_g = d|e| (paper: 0.1; measured, see above)
     Scalar edge_threshold = 0.251;    ///< see SharpFeatureParams::edge_threshold
     Scalar voting_cube = 3;           ///< see SharpFeatureParams::voting_cube
     std::size_t edge_iterations = 2;  ///< passes of filters 1–2 (paper: 2)
@@ -160,7 +160,7 @@ struct FeatureBilateralParams {
     Scalar direction_threshold = 0.9;      ///< see SharpFeatureParams
     bool boundary_edges_sharp = false;     ///< see SharpFeatureParams
     std::size_t normal_iterations = 10;    ///< passes of filter 3 per face iteration (paper: 1; measured)
-    std::size_t vertex_iterations = 1;     ///< passes of filter 4 per face iteration (paper: 1)
+    std::size_t vertex_iterations = 2;     ///< passes of filter 4 per face iteration (paper: 1; measured)
     std::size_t prefilter_iterations = 3;  ///< see SharpFeatureParams
     Scalar prefilter_scale = 2;            ///< see SharpFeatureParams
     bool crease_test = true;               ///< see SharpFeatureParams
