@@ -23,6 +23,7 @@ struct ReconstructOptions {
     int max_level = 8;
     double epsilon = 4e-3;
     double k = 10;
+    double weight_scale = 0;
     std::size_t smoothing = 30;
     std::string labeling = "graphcut";
     bool inward = false;
@@ -43,6 +44,10 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("--k", o->k, "Terminal/edge capacity ratio of the graph cut (paper: 5-15)")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    cmd.add_option("--triangulation-weight-scale", o->weight_scale,
+                   "Regular-triangulation weights (s r)^2: 1 is the paper (small supports hidden), 0 keeps all")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
     cmd.add_option("--smoothing", o->smoothing, "Selective Taubin iterations")->capture_default_str();
     cmd.add_option("--labeling", o->labeling, "graphcut, or sign (the PU field's sign, for comparison)")
         ->capture_default_str()
@@ -70,6 +75,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         p.max_level = o->max_level;
         p.epsilon = o->epsilon;
         p.k = o->k;
+        p.triangulation_weight_scale = o->weight_scale;
         p.smoothing_iterations = o->smoothing;
         p.seed = ctx.common.seed;
         p.normals = o->inward ? kintsugi::NormalConvention::inward : kintsugi::NormalConvention::outward;
@@ -93,6 +99,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["max_level"] = o->max_level;
         j["parameters"]["epsilon"] = o->epsilon;
         j["parameters"]["k"] = o->k;
+        j["parameters"]["triangulation_weight_scale"] = o->weight_scale;
         j["parameters"]["smoothing_iterations"] = o->smoothing;
         j["parameters"]["labeling"] = o->labeling;
         j["parameters"]["inward_normals"] = o->inward;

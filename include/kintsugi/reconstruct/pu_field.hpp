@@ -78,6 +78,12 @@ struct PUSupport {
     Vec3 origin = Vec3::Zero();  ///< d_i, weighted centroid of the points in the ball
     std::size_t point_count = 0; ///< input points p_j with |p_j - c_i| < r_i
     int level = 0;               ///< octree level of the cell c_i came from
+    /// Agreement of the normals in the ball, |Σ_j w_i(p_j) n_j| / Σ_j w_i(p_j) in [0, 1]:
+    /// near 1 on a surface patch, about 1/sqrt(point_count) among outliers.
+    Scalar coherence = 0;
+    /// max_j |g_i(p_j)| / ε over the points in the ball: <= 1 when eq. (6) holds, above
+    /// 1 when r_i sits at its minimum (0.75 x the cell diagonal) and the fit is still off.
+    Scalar fit_error = 0;
 };
 
 class PUField;
@@ -389,7 +395,8 @@ inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3
             const auto& s = sup[i];
             data->eval[i] = {s.c, s.r, 1 / s.r, s.r * s.r, s.m, s.m.dot(s.d)};
             data->supports[i] = PUSupport{data->center + s.c * inv_scale, s.r * inv_scale, s.m,
-                                          data->center + s.d * inv_scale, s.count, static_cast<int>(s.level)};
+                                          data->center + s.d * inv_scale, s.count, static_cast<int>(s.level),
+                                          s.coherence, s.fit_error};
         }
         // Grid cell -> supports whose ball meets the cell: per block of supports, in
         // parallel; then a counting sort by cell in support order (deterministic).

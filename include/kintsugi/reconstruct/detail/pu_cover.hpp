@@ -44,6 +44,12 @@ struct PUSupportData {
     Vec3 m = Vec3::Zero();  ///< unit, pointing into the object (f > 0 inside)
     Vec3 d = Vec3::Zero();
     std::size_t count = 0;   ///< input points with |p - c| < r
+    /// |Σ w_j n_j| / Σ w_j over those points, in [0, 1]: 1 when their normals agree
+    /// (a surface patch), about 1/sqrt(count) when they point anywhere (outliers).
+    Scalar coherence = 0;
+    /// max |g(p_j)| / ε over those points: <= 1 when eq. (6) holds, above 1 when the
+    /// radius sits at its minimum and the fit is still off (noise above ε, outliers).
+    Scalar fit_error = 0;
     std::uint32_t level = 0; ///< level of the octree cell the centre came from
     Index cell = 0;          ///< that cell
     bool fallback = false;   ///< no usable fit: tangent plane of the nearest input point
@@ -63,6 +69,7 @@ struct PUCoverInput {
 struct PUFitState {
     Vec3 m = Vec3::Zero(), d = Vec3::Zero();
     std::size_t count = 0;
+    Scalar coherence = 0;  ///< |Σ w n| / Σ w
     bool valid = false;  ///< at least one point and a non-degenerate normal sum
 };
 
@@ -87,6 +94,7 @@ inline PUFitState pu_fit(const PUCoverInput& in, const Vec3& c, Scalar r, const 
         sp += w * P[idx[j]];
     }
     const Scalar len = sn.norm();
+    if (sw > 0) s.coherence = len / sw;
     if (!(sw > 0) || !(len > Scalar(1e-9) * sw)) return s;
     s.m = sn / len;
     s.d = sp / sw;
@@ -172,9 +180,15 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     out.r = r;
     const PUFitState s = pu_fit(in, out.c, r, idx, dist);
     out.count = s.count;
+    out.coherence = s.coherence;
     if (s.valid) {
         out.m = s.m;
         out.d = s.d;
+        const Scalar md = s.m.dot(s.d);
+        Scalar worst = 0;
+        for (std::size_t j = 0; j < s.count; ++j)
+            worst = std::max(worst, std::abs(s.m.dot((*in.points)[idx[j]]) - md));
+        out.fit_error = worst / in.epsilon;
     } else {
         // No point in the ball (far from the data) or normals cancelling out: use the
         // tangent plane of the nearest input point, which has the right sign far away.
