@@ -26,6 +26,8 @@
 // file buffer and the 48 MB output vectors; the decoding loop itself is ~17 %.
 #include <benchmark/benchmark.h>
 
+#include "common.hpp"
+
 #include <kintsugi/io/read.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -201,45 +203,21 @@ BENCHMARK(BM_cgal_read_PLY_points_normals)->Unit(benchmark::kMillisecond)->MinTi
 BENCHMARK(BM_cgal_read_point_set)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_kintsugi_read_mesh_scans)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
-/// Console output plus the ratios against CGAL at the end.
-class RatioReporter : public benchmark::ConsoleReporter {
-public:
-    void ReportRuns(const std::vector<Run>& runs) override {
-        for (const Run& r : runs)
-            if (!r.error_occurred) ms_[r.benchmark_name()] = {r.GetAdjustedRealTime(), r.GetAdjustedCPUTime()};
-        ConsoleReporter::ReportRuns(runs);
-    }
-    void Finalize() override {
-        ConsoleReporter::Finalize();
-        auto find = [&](const std::string& prefix) {
-            for (const auto& [name, t] : ms_)
-                if (name.rfind(prefix, 0) == 0) return t;
-            return std::pair{-1.0, -1.0};
-        };
-        const auto k = find("BM_kintsugi_read_point_cloud/");
-        std::cout << "\nRead 1M-point binary PLY, time per read (real / CPU):\n";
-        for (const char* peer : {"BM_cgal_read_PLY_points", "BM_cgal_read_PLY_points_normals", "BM_cgal_read_point_set"}) {
-            const auto c = find(std::string(peer) + "/");
-            if (k.first > 0 && c.first > 0)
-                std::printf("  kintsugi %.0f / %.0f ms vs %s %.0f / %.0f ms: kintsugi is %.1fx (real) / %.1fx (CPU) faster\n",
-                            k.first, k.second, peer, c.first, c.second, c.first / k.first, c.second / k.second);
-        }
-    }
-
-private:
-    std::map<std::string, std::pair<double, double>> ms_;
-};
-
 }  // namespace
 
 int main(int argc, char** argv) {
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     inputs();
-    RatioReporter reporter;
-    benchmark::RunSpecifiedBenchmarks(&reporter);
-    benchmark::Shutdown();
+    const int rc = ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
+        const double kr = r.real("BM_kintsugi_read_point_cloud"), kc = r.cpu("BM_kintsugi_read_point_cloud");
+        std::cout << "\nRead 1M-point binary PLY, time per read (real / CPU):\n";
+        for (const char* peer : {"BM_cgal_read_PLY_points", "BM_cgal_read_PLY_points_normals", "BM_cgal_read_point_set"}) {
+            const double cr = r.real(peer), cc = r.cpu(peer);
+            if (kr > 0 && cr > 0)
+                std::printf("  kintsugi %.0f / %.0f ms vs %s %.0f / %.0f ms: kintsugi is %.1fx (real) / %.1fx (CPU) faster\n",
+                            kr, kc, peer, cr, cc, cr / kr, cc / kc);
+        }
+    });
     std::error_code ec;
     fs::remove_all(inputs().dir, ec);
-    return 0;
+    return rc;
 }

@@ -18,6 +18,8 @@
 // The ratios are printed at the end.
 #include <benchmark/benchmark.h>
 
+#include "common.hpp"
+
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/metrics/distance.hpp>
@@ -159,47 +161,22 @@ BENCHMARK(BM_cgal_topology)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 BENCHMARK(BM_kintsugi_compare)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
 BENCHMARK(BM_cgal_approximate_Hausdorff)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
 
-/// Console output plus the ratios against CGAL at the end.
-class RatioReporter : public benchmark::ConsoleReporter {
-public:
-    void ReportRuns(const std::vector<Run>& runs) override {
-        for (const Run& r : runs)
-            if (!r.error_occurred) ms_[r.benchmark_name()] = r.GetAdjustedRealTime();
-        ConsoleReporter::ReportRuns(runs);
-    }
-    void Finalize() override {
-        ConsoleReporter::Finalize();
-        auto find = [&](const std::string& prefix) {
-            for (const auto& [name, t] : ms_)
-                if (name.rfind(prefix, 0) == 0) return t;
-            return -1.0;
-        };
+}  // namespace
+
+int main(int argc, char** argv) {
+    inputs();
+    return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
         std::cout << "\nMetrics on " << inputs().source << " (real time):\n";
-        const double kt = find("BM_kintsugi_topology_report"), ct = find("BM_cgal_topology");
+        const double kt = r.real("BM_kintsugi_topology_report"), ct = r.real("BM_cgal_topology");
         if (kt > 0 && ct > 0)
             std::printf("  topology_report %.1f ms vs CGAL Surface_mesh + PMP %.1f ms: %.2fx\n", kt, ct, ct / kt);
-        const double k1 = find("BM_kintsugi_compare/1"), kn = find("BM_kintsugi_compare/0"),
-                     ch = find("BM_cgal_approximate_Hausdorff");
+        const double k1 = r.real("BM_kintsugi_compare/1"), kn = r.real("BM_kintsugi_compare/0"),
+                     ch = r.real("BM_cgal_approximate_Hausdorff");
         if (k1 > 0 && ch > 0)
             std::printf("  compare (1 thread) %.1f ms vs CGAL approximate_Hausdorff_distance x2 (sequential) %.1f ms: "
                         "%.2fx\n",
                         k1, ch, ch / k1);
         if (kn > 0 && ch > 0)
             std::printf("  compare (%d threads) %.1f ms: %.2fx\n", ks::max_threads(), kn, ch / kn);
-    }
-
-private:
-    std::map<std::string, double> ms_;
-};
-
-}  // namespace
-
-int main(int argc, char** argv) {
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-    inputs();
-    RatioReporter reporter;
-    benchmark::RunSpecifiedBenchmarks(&reporter);
-    benchmark::Shutdown();
-    return 0;
+    });
 }

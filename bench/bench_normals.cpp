@@ -24,6 +24,8 @@
 #define CGAL_LINKED_WITH_TBB 1
 #include <benchmark/benchmark.h>
 
+#include "common.hpp"
+
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/parallel.hpp>
@@ -184,48 +186,17 @@ KS_BENCH(BM_cgal_jet_orient_parallel);
 KS_BENCH(BM_kintsugi_orient_only);
 KS_BENCH(BM_cgal_orient_only);
 
-/// Console output plus the ratios against CGAL at the end.
-class RatioReporter : public benchmark::ConsoleReporter {
-public:
-    void ReportRuns(const std::vector<Run>& runs) override {
-        for (const auto& r : runs)
-            if (!r.error_occurred) ms_[r.benchmark_name()] = r.GetAdjustedRealTime();
-        ConsoleReporter::ReportRuns(runs);
-    }
-    void Finalize() override {
-        ConsoleReporter::Finalize();
-        std::printf("\nInput: %s\n", data().source.c_str());
-        auto ratio = [&](const std::string& ours, const std::string& peer) {
-            const double a = find(ours), b = find(peer);
-            if (a > 0 && b > 0)
-                std::printf("  %-34s %9.1f ms   %-32s %9.1f ms   ratio (CGAL / kintsugi) %.2fx\n", ours.c_str(), a,
-                            peer.c_str(), b, b / a);
-        };
-        for (const char* what : {"pca", "jet", "pca_orient", "jet_orient"}) {
-            const std::string w = what;
-            ratio("BM_kintsugi_" + w + "_1thread", "BM_cgal_" + w + "_sequential");
-            ratio("BM_kintsugi_" + w + "_parallel", "BM_cgal_" + w + "_parallel");
-        }
-        ratio("BM_kintsugi_orient_only", "BM_cgal_orient_only");
-    }
-
-private:
-    double find(const std::string& prefix) const {
-        for (const auto& [name, t] : ms_)
-            if (name.rfind(prefix, 0) == 0 && (name.size() == prefix.size() || name[prefix.size()] == '/')) return t;
-        return -1;
-    }
-    std::map<std::string, double> ms_;
-};
-
 }  // namespace
 
 int main(int argc, char** argv) {
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     std::printf("Input: %s\n", data().source.c_str());
-    RatioReporter reporter;
-    benchmark::RunSpecifiedBenchmarks(&reporter);
-    benchmark::Shutdown();
-    return 0;
+    return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
+        std::printf("\nInput: %s\n", data().source.c_str());
+        for (const char* what : {"pca", "jet", "pca_orient", "jet_orient"}) {
+            const std::string w = what;
+            r.print_ratio("BM_kintsugi_" + w + "_1thread", "BM_cgal_" + w + "_sequential");
+            r.print_ratio("BM_kintsugi_" + w + "_parallel", "BM_cgal_" + w + "_parallel");
+        }
+        r.print_ratio("BM_kintsugi_orient_only", "BM_cgal_orient_only");
+    });
 }

@@ -14,6 +14,8 @@
 // Run: bench_pu_field --benchmark_counters_tabular=true
 #include <benchmark/benchmark.h>
 
+#include "common.hpp"
+
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
 #include <kintsugi/spatial/octree.hpp>
@@ -248,8 +250,16 @@ int main(int argc, char** argv) {
     if (!std::filesystem::exists(std::filesystem::path(KINTSUGI_SHARED_DATA_DIR) /
                                  "stanford_bunny/reconstruction/bun_zipper_points_normals.xyz"))
         std::printf("note: %s not found; the bunny benchmarks are skipped\n", KINTSUGI_SHARED_DATA_DIR);
-    benchmark::Initialize(&argc, argv);
-    benchmark::RunSpecifiedBenchmarks();
-    benchmark::Shutdown();
-    return 0;
+    return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
+        std::printf("\nSame run, real time (ratio > 1: kintsugi faster):\n");
+        for (const char* in : {"torus2m_L8", "bunny_L8"})
+            r.print_ratio(std::string("BM_Octree_kintsugi/") + in, std::string("BM_Octree_CGAL/") + in);
+        for (const char* in : {"bunny", "torus100k"})
+            r.print_ratio(std::string("BM_PUField_build/") + in + "_L8", std::string("BM_Poisson_implicit_function/") + in);
+        const double pu = r.counter("BM_PUField_values/torus100k", "items_per_second"),
+                     po = r.counter("BM_Poisson_values/torus100k", "items_per_second");
+        if (pu > 0 && po > 0)
+            std::printf("  evaluation: PUField::values %.3g /s (parallel) vs Poisson function %.3g /s (1 thread): %.2fx\n",
+                        pu, po, pu / po);
+    });
 }

@@ -4,13 +4,27 @@
 // PU + graph-cut reconstruction against CGAL's Poisson surface reconstruction on the
 // same inputs, in the same run: the bunny (../shared/data/cgal/meshes/bunny00.off)
 // sampled at 100K and 2M oriented points with 0.1 % noise, 3 holes and 10 %
-// outliers. Reports per-stage times, peak memory and accuracy (distances of the
-// result to the true mesh, relative to its bounding-box diagonal) side by side.
+// outliers (PU at octree level 8 for 100K, 9 for 2M, as in the paper for the
+// size of the data). Reports wall and CPU time, per-stage times, peak memory and
+// accuracy (distances of the result to the true mesh and back, relative to its
+// bounding-box diagonal; components; closed and manifold; area ratio) side by side,
+// with ratios, in a table at the end.
+//
+// Each reconstruction runs in a child process (fork) that builds its input itself:
+// its peak resident set (VmHWM) is its own, and a peer that aborts, throws, runs out
+// of memory or runs too long is recorded as such instead of taking the benchmark
+// down. Limits per run: KINTSUGI_BENCH_TIMEOUT seconds (default 900) and
+// KINTSUGI_BENCH_MEMORY_GB of address space (default 12). The parent process never
+// starts the thread pool (forking a process that runs TBB threads is unsafe).
+//
+// Run: bench_reconstruct [--benchmark_filter=100000]
 #ifndef CGAL_EIGEN3_ENABLED
 #define CGAL_EIGEN3_ENABLED 1
 #endif
 
 #include <benchmark/benchmark.h>
+
+#include "common.hpp"
 
 #include <kintsugi/adapters/cgal.hpp>
 #include <kintsugi/io/read.hpp>
@@ -25,8 +39,18 @@
 #include <CGAL/poisson_surface_reconstruction.h>
 #include <CGAL/property_map.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <poll.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -40,13 +64,7 @@ namespace {
 
 const std::string kBunny = std::string(KINTSUGI_SHARED_DATA_DIR) + "/cgal/meshes/bunny00.off";
 
-double peak_rss_mb() {
-    std::ifstream in("/proc/self/status");
-    std::string line;
-    while (std::getline(in, line))
-        if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-    return 0;
-}
+using ks::bench::peak_rss_mb;
 
 const ks::IndexedMesh& reference() {
     static const ks::IndexedMesh m = ks::read_mesh(kBunny);
@@ -100,21 +118,166 @@ const ks::PointCloud& input(std::size_t n) {
     return cache.emplace(n, std::move(pc)).first->second;
 }
 
-void accuracy_counters(benchmark::State& state, const ks::IndexedMesh& result) {
+/// What a child process sends back (plain data through a pipe).
+struct Outcome {
+    int ok = 0;  ///< 1 when the method returned a mesh
+    double wall_s = 0, cpu_s = 0;  ///< reconstruction only (input and metrics excluded)
+    double peak_rss_mb = 0;        ///< the child's peak resident set, input included
+    double input_rss_mb = 0;       ///< resident set once the input was built
+    double components = 0, closed_manifold = 0, faces = 0, genus = 0;
+    double mean = -1, hausdorff = -1, mean_back = -1, area_ratio = -1;  ///< % of the diagonal / ratio
+    double supports = 0, graph_nodes = 0;
+    int n_stages = 0;
+    std::array<std::array<char, 32>, 12> stage{};
+    std::array<double, 12> stage_s{};
+    std::array<char, 200> note{};
+};
+
+void set_note(Outcome& o, const std::string& s) { std::snprintf(o.note.data(), o.note.size(), "%s", s.c_str()); }
+
+double cpu_seconds() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+           1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+void measure_accuracy(Outcome& o, const ks::IndexedMesh& result) {
     const auto rep = ks::topology_report(result);
-    state.counters["components"] = static_cast<double>(rep.components);
-    state.counters["closed_manifold"] = rep.closed && rep.manifold ? 1 : 0;
-    state.counters["faces"] = static_cast<double>(rep.faces);
+    o.components = static_cast<double>(rep.components);
+    o.closed_manifold = rep.closed && rep.manifold ? 1 : 0;
+    o.faces = static_cast<double>(rep.faces);
+    o.genus = static_cast<double>(rep.genus);
     if (result.faces.empty()) return;
     const auto d = ks::compare(result, reference(), {.samples = 200000});
     const auto ab = d.relative(d.a_to_b), ba = d.relative(d.b_to_a);
-    state.counters["mean_to_truth_%"] = 100 * ab.mean;
-    state.counters["hausdorff_to_truth_%"] = 100 * ab.hausdorff;
-    state.counters["mean_truth_to_result_%"] = 100 * ba.mean;
-    state.counters["area_ratio"] = [&] {
-        const auto ar = ks::face_areas(result), at = ks::face_areas(reference());
-        return std::accumulate(ar.begin(), ar.end(), 0.0) / std::accumulate(at.begin(), at.end(), 0.0);
-    }();
+    o.mean = 100 * ab.mean;
+    o.hausdorff = 100 * ab.hausdorff;
+    o.mean_back = 100 * ba.mean;
+    const auto ar = ks::face_areas(result), at = ks::face_areas(reference());
+    o.area_ratio = std::accumulate(ar.begin(), ar.end(), 0.0) / std::accumulate(at.begin(), at.end(), 0.0);
+}
+
+template <class T>
+T env_or(const char* name, T fallback) {
+    const char* v = std::getenv(name);
+    return v && *v ? static_cast<T>(std::atof(v)) : fallback;
+}
+
+/// Runs `method(points) -> optional mesh` in a child process with the time and memory
+/// limits; the child builds the input and measures the result.
+template <class Method>
+Outcome run_isolated(std::size_t n, Method&& method) {
+    const double timeout = env_or("KINTSUGI_BENCH_TIMEOUT", 900.0);
+    const double mem_gb = env_or("KINTSUGI_BENCH_MEMORY_GB", 12.0);
+    Outcome o;
+    int fd[2];
+    if (pipe(fd) != 0) {
+        set_note(o, "pipe() failed");
+        return o;
+    }
+    std::fflush(stdout);
+    std::fflush(stderr);
+    const pid_t pid = fork();
+    if (pid < 0) {
+        set_note(o, "fork() failed");
+        return o;
+    }
+    if (pid == 0) {
+        close(fd[0]);
+        const rlimit lim{static_cast<rlim_t>(mem_gb * 1073741824.0), static_cast<rlim_t>(mem_gb * 1073741824.0)};
+        setrlimit(RLIMIT_AS, &lim);
+        Outcome c;
+        try {
+            const ks::PointCloud& pts = input(n);
+            c.input_rss_mb = peak_rss_mb();
+            const auto t0 = std::chrono::steady_clock::now();
+            const double c0 = cpu_seconds();
+            ks::IndexedMesh mesh;
+            method(pts, mesh, c);
+            c.cpu_s = cpu_seconds() - c0;
+            c.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            c.peak_rss_mb = peak_rss_mb();
+            if (c.ok) measure_accuracy(c, mesh);
+        } catch (const std::bad_alloc&) {
+            c.ok = 0;
+            c.peak_rss_mb = peak_rss_mb();
+            set_note(c, "out of memory (std::bad_alloc; address-space limit " + std::to_string(int(mem_gb)) + " GB)");
+        } catch (const std::exception& e) {
+            c.ok = 0;
+            c.peak_rss_mb = peak_rss_mb();
+            set_note(c, std::string("threw: ") + e.what());
+        }
+        const char* p = reinterpret_cast<const char*>(&c);
+        std::size_t left = sizeof c;
+        while (left > 0) {
+            const ssize_t w = write(fd[1], p, left);
+            if (w <= 0) break;
+            p += w;
+            left -= static_cast<std::size_t>(w);
+        }
+        close(fd[1]);
+        _exit(0);
+    }
+    close(fd[1]);
+    const auto t0 = std::chrono::steady_clock::now();
+    std::size_t got = 0;
+    char* p = reinterpret_cast<char*>(&o);
+    bool timed_out = false;
+    while (got < sizeof o) {
+        const double left = timeout - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (left <= 0) {
+            timed_out = true;
+            break;
+        }
+        pollfd pf{fd[0], POLLIN, 0};
+        const int r = poll(&pf, 1, static_cast<int>(std::min(left, 60.0) * 1000) + 1);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) continue;
+        const ssize_t k = read(fd[0], p + got, sizeof o - got);
+        if (k <= 0) break;  // the child exited without a complete answer
+        got += static_cast<std::size_t>(k);
+    }
+    close(fd[0]);
+    if (timed_out) kill(pid, SIGKILL);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (got < sizeof o) {
+        o = Outcome{};
+        o.wall_s = elapsed;
+        if (timed_out)
+            set_note(o, "timed out after " + std::to_string(int(timeout)) + " s (KINTSUGI_BENCH_TIMEOUT); killed");
+        else if (WIFSIGNALED(status))
+            set_note(o, std::string("crashed: signal ") + std::to_string(WTERMSIG(status)) + " (" +
+                            strsignal(WTERMSIG(status)) + ")");
+        else
+            set_note(o, "child exited without an answer (status " + std::to_string(status) + ")");
+    }
+    return o;
+}
+
+std::map<std::string, Outcome>& results() {
+    static std::map<std::string, Outcome> r;
+    return r;
+}
+
+std::string key(const char* method, std::size_t n) { return std::string(method) + "/" + std::to_string(n); }
+
+void report(benchmark::State& state, const char* method, std::size_t n, const Outcome& o) {
+    state.SetIterationTime(std::max(o.wall_s, 1e-9));
+    state.counters["ok"] = o.ok;
+    state.counters["cpu_s"] = o.cpu_s;
+    state.counters["peak_rss_MB"] = o.peak_rss_mb;
+    state.counters["components"] = o.components;
+    state.counters["closed_manifold"] = o.closed_manifold;
+    state.counters["mean_to_truth_%"] = o.mean;
+    state.counters["hausdorff_to_truth_%"] = o.hausdorff;
+    state.counters["mean_truth_to_result_%"] = o.mean_back;
+    state.counters["area_ratio"] = o.area_ratio;
+    for (int i = 0; i < o.n_stages; ++i) state.counters[std::string("s_") + o.stage[std::size_t(i)].data()] = o.stage_s[std::size_t(i)];
+    if (o.note[0] != 0) state.SetLabel(o.note.data());
+    results()[key(method, n)] = o;
 }
 
 bool have_data(benchmark::State& state) {
@@ -125,53 +288,105 @@ bool have_data(benchmark::State& state) {
 
 void BM_PUGraphcut(benchmark::State& state) {
     if (!have_data(state)) return;
-    const auto& pts = input(static_cast<std::size_t>(state.range(0)));
-    ks::PUGraphcutResult r;
+    const auto n = static_cast<std::size_t>(state.range(0));
+    const int level = static_cast<int>(state.range(1));
+    Outcome o;
     for (auto _ : state) {
-        const auto t0 = std::chrono::steady_clock::now();
-        r = ks::reconstruct_pu_graphcut(pts, {.max_level = static_cast<int>(state.range(1))});
-        state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        o = run_isolated(n, [&](const ks::PointCloud& pts, ks::IndexedMesh& mesh, Outcome& c) {
+            auto r = ks::reconstruct_pu_graphcut(pts, {.max_level = level});
+            c.ok = r.status == ks::Status::ok ? 1 : 0;
+            c.supports = static_cast<double>(r.supports);
+            c.graph_nodes = static_cast<double>(r.graph_nodes);
+            for (const auto& t : r.timings) {
+                if (c.n_stages == int(c.stage.size())) break;
+                std::snprintf(c.stage[std::size_t(c.n_stages)].data(), 32, "%s", t.stage.c_str());
+                c.stage_s[std::size_t(c.n_stages++)] = t.seconds;
+            }
+            mesh = std::move(r.mesh);
+        });
     }
-    for (const auto& t : r.timings) state.counters["s_" + t.stage] = t.seconds;
-    state.counters["supports"] = static_cast<double>(r.supports);
-    state.counters["graph_nodes"] = static_cast<double>(r.graph_nodes);
-    state.counters["peak_rss_MB"] = peak_rss_mb();
-    accuracy_counters(state, r.mesh);
+    state.counters["supports"] = o.supports;
+    state.counters["graph_nodes"] = o.graph_nodes;
+    report(state, "PU+graph-cut", n, o);
 }
 
 void BM_CGALPoisson(benchmark::State& state) {
     if (!have_data(state)) return;
     using K = CGAL::Exact_predicates_inexact_constructions_kernel;
     using PN = std::pair<K::Point_3, K::Vector_3>;
-    const auto& pts = input(static_cast<std::size_t>(state.range(0)));
-    std::vector<PN> pn(pts.points.size());
-    for (std::size_t i = 0; i < pn.size(); ++i)
-        pn[i] = {K::Point_3(pts.points[i].x(), pts.points[i].y(), pts.points[i].z()),
-                 K::Vector_3(pts.normals[i].x(), pts.normals[i].y(), pts.normals[i].z())};
-    CGAL::Surface_mesh<K::Point_3> out;
-    bool ok = false;
+    const auto n = static_cast<std::size_t>(state.range(0));
+    Outcome o;
     for (auto _ : state) {
-        out.clear();
-        const auto t0 = std::chrono::steady_clock::now();
-        try {
+        o = run_isolated(n, [&](const ks::PointCloud& pts, ks::IndexedMesh& mesh, Outcome& c) {
+            std::vector<PN> pn(pts.points.size());
+            for (std::size_t i = 0; i < pn.size(); ++i)
+                pn[i] = {K::Point_3(pts.points[i].x(), pts.points[i].y(), pts.points[i].z()),
+                         K::Vector_3(pts.normals[i].x(), pts.normals[i].y(), pts.normals[i].z())};
+            CGAL::Surface_mesh<K::Point_3> out;
             const double spacing = CGAL::compute_average_spacing<CGAL::Sequential_tag>(
                 pn, 6, CGAL::parameters::point_map(CGAL::First_of_pair_property_map<PN>()));
-            ok = CGAL::poisson_surface_reconstruction_delaunay(pn.begin(), pn.end(),
-                                                               CGAL::First_of_pair_property_map<PN>(),
-                                                               CGAL::Second_of_pair_property_map<PN>(), out, spacing);
-        } catch (const std::exception& e) {
-            std::fprintf(stderr, "CGAL Poisson threw: %s\n", e.what());
-            ok = false;
+            const bool ok = CGAL::poisson_surface_reconstruction_delaunay(
+                pn.begin(), pn.end(), CGAL::First_of_pair_property_map<PN>(), CGAL::Second_of_pair_property_map<PN>(),
+                out, spacing);
+            c.ok = ok && out.number_of_faces() > 0 ? 1 : 0;
+            if (!ok) set_note(c, "poisson_surface_reconstruction_delaunay returned false");
+            else if (out.number_of_faces() == 0) set_note(c, "empty surface");
+            mesh = ks::to_indexed_mesh(out);
+        });
+    }
+    report(state, "CGAL Poisson", n, o);
+}
+
+void print_summary() {
+    std::printf("\nBunny (%s) sampled with 0.1 %% noise, 3 holes, 10 %% outliers; each run in its own process.\n",
+                kBunny.c_str());
+    {
+        std::ifstream la("/proc/loadavg");
+        std::string l;
+        std::getline(la, l);
+        std::printf("Load average at the end: %s (2 cores shared: wall times grow with the load, CPU times much less)\n",
+                    l.c_str());
+    }
+    auto cell = [](const Outcome* o, double v, const char* fmt) {
+        char buf[64];
+        if (!o) return std::string("-");
+        if (v < 0) return std::string("n/a");
+        std::snprintf(buf, sizeof buf, fmt, v);
+        return std::string(buf);
+    };
+    for (std::size_t n : {std::size_t{100000}, std::size_t{2000000}}) {
+        const auto& R = results();
+        const auto pi = R.find(key("PU+graph-cut", n)), ci = R.find(key("CGAL Poisson", n));
+        const Outcome* pu = pi == R.end() ? nullptr : &pi->second;
+        const Outcome* po = ci == R.end() ? nullptr : &ci->second;
+        if (!pu && !po) continue;
+        std::printf("\n%zu points            %16s %16s   %s\n", n, "PU+graph-cut", "CGAL Poisson", "Poisson / PU");
+        auto row = [&](const char* name, double a, double b, const char* fmt, bool ratio) {
+            std::printf("  %-22s %16s %16s", name, cell(pu, a, fmt).c_str(), cell(po, b, fmt).c_str());
+            if (ratio && pu && po && a > 0 && b > 0) std::printf("   %.2fx", b / a);
+            std::printf("\n");
+        };
+        const bool pok = pu && pu->ok, cok = po && po->ok;
+        row("wall time (s)", pu ? pu->wall_s : -1, po ? po->wall_s : -1, "%.2f", true);
+        row("CPU time (s)", pu ? pu->cpu_s : -1, po ? po->cpu_s : -1, "%.2f", true);
+        row("peak RSS (MB)", pu ? pu->peak_rss_mb : -1, po ? po->peak_rss_mb : -1, "%.0f", true);
+        row("  of which input (MB)", pu ? pu->input_rss_mb : -1, po ? po->input_rss_mb : -1, "%.0f", false);
+        row("components", pok ? pu->components : -1, cok ? po->components : -1, "%.0f", false);
+        row("closed & manifold", pok ? pu->closed_manifold : -1, cok ? po->closed_manifold : -1, "%.0f", false);
+        row("genus (sum)", pok ? pu->genus : -1, cok ? po->genus : -1, "%.0f", false);
+        row("mean dist to truth (%)", pok ? pu->mean : -1, cok ? po->mean : -1, "%.4f", true);
+        row("Hausdorff to truth (%)", pok ? pu->hausdorff : -1, cok ? po->hausdorff : -1, "%.3f", true);
+        row("truth to result (%)", pok ? pu->mean_back : -1, cok ? po->mean_back : -1, "%.4f", true);
+        row("area / true area", pok ? pu->area_ratio : -1, cok ? po->area_ratio : -1, "%.3f", false);
+        if (pu && pu->note[0]) std::printf("  PU+graph-cut: %s\n", pu->note.data());
+        if (po && po->note[0]) std::printf("  CGAL Poisson: %s\n", po->note.data());
+        if (pu && pu->n_stages > 0) {
+            std::printf("  PU+graph-cut stages (wall s):");
+            for (int i = 0; i < pu->n_stages; ++i)
+                std::printf(" %s %.2f", pu->stage[std::size_t(i)].data(), pu->stage_s[std::size_t(i)]);
+            std::printf("\n");
         }
-        state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
-    state.counters["poisson_ok"] = ok ? 1 : 0;
-    state.counters["peak_rss_MB"] = peak_rss_mb();
-    if (!ok || out.number_of_faces() == 0) {
-        state.counters["components"] = 0;
-        return;
-    }
-    accuracy_counters(state, ks::to_indexed_mesh(out));
 }
 
 }  // namespace
@@ -182,4 +397,6 @@ BENCHMARK(BM_CGALPoisson)->Args({100000, 0})->Unit(benchmark::kSecond)->UseManua
 BENCHMARK(BM_PUGraphcut)->Args({2000000, 9})->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1);
 BENCHMARK(BM_CGALPoisson)->Args({2000000, 0})->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1);
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter&) { print_summary(); });
+}

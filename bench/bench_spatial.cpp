@@ -12,12 +12,23 @@
 // one of the 1M points (what normal estimation does), single-threaded for both, and
 // kintsugi also through its parallel loop. Ratios are printed at the end.
 //
+// Also: the leaf-size trade-off (10-NN, 1 thread, leaf sizes 6 to 24 against CGAL's
+// bucket of 10) and the radius search sorted vs unsorted (~57 neighbours per ball).
+// Ratios are printed at the end, with CPU times for the single-threaded runs.
+//
 // Measured 2026-11-23 on this 2-core machine under load ~10 (wall ~6x CPU; CPU
 // times of single-threaded runs are the reliable figures), bunny scans input:
 //   build 1M points:        kintsugi 345 ms CPU, CGAL Kd_tree 445 ms   (CGAL / kintsugi 1.29x)
 //   10-NN of all 1M points: kintsugi 1937 ms CPU, CGAL 1509 ms          (0.78x: CGAL's search is
 //   faster per query; kintsugi asks nanoflann for k+1 to resolve ties by index)
+// Later the same day (load ~4.5), leaf size (CPU per 1M 10-NN queries): 6: 2.20 s,
+// 8: 1.95 s, 10: 2.11 s, 12: 1.68-1.71 s, 16 (former default): 1.90-1.92 s, 24:
+// 1.74-1.78 s; CGAL 1.36-1.45 s. Default now 12 (and no sort of the k+1 results
+// unless two distances tie). Radius search of ~57 points: unsorted 0.96 s CPU,
+// sorted 1.44 s per 250K queries (1.5x).
 #include <benchmark/benchmark.h>
+
+#include "common.hpp"
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/parallel.hpp>
@@ -127,6 +138,51 @@ void BM_kintsugi_knn10_parallel(benchmark::State& state) { kintsugi_knn(state, 0
 BENCHMARK(BM_kintsugi_knn10_1thread)->Unit(benchmark::kMillisecond)->Iterations(2);
 BENCHMARK(BM_kintsugi_knn10_parallel)->Unit(benchmark::kMillisecond)->Iterations(2);
 
+// Leaf (bucket) size trade-off: 10-NN of every point, 1 thread, for several leaf
+// sizes (the default is KdTreeParams{}.leaf_size; CGAL's Kd_tree uses buckets of 10).
+void BM_kintsugi_knn10_leaf(benchmark::State& state) {
+    const auto& d = data();
+    const ks::KdTree tree(d.points, ks::KdTreeParams{.leaf_size = static_cast<std::size_t>(state.range(0))});
+    ks::ThreadLimit limit(1);
+    std::vector<std::size_t> checksum(d.points.size());
+    for (auto _ : state) {
+        std::vector<ks::Neighbor> nn;
+        for (std::size_t i = 0; i < d.points.size(); ++i) {
+            tree.knn(d.points[i], kK, nn);
+            checksum[i] = nn.back().index;
+        }
+        benchmark::DoNotOptimize(checksum.data());
+    }
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kPoints));
+}
+BENCHMARK(BM_kintsugi_knn10_leaf)->Arg(6)->Arg(8)->Arg(10)->Arg(12)->Arg(16)->Arg(24)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+// Radius search with ~60 neighbours per ball, every 4th point, 1 thread: sorted
+// (Arg 1) against unsorted (Arg 0). The radius is the median distance to the 60th
+// neighbour over 1000 sample points.
+void BM_kintsugi_radius60(benchmark::State& state) {
+    const auto& d = data();
+    const ks::KdTree tree(d.points);
+    std::vector<double> r2s;
+    for (std::size_t i = 0; i < 1000; ++i) r2s.push_back(tree.knn(d.points[i * (kPoints / 1000)], 60).back().squared_distance);
+    std::nth_element(r2s.begin(), r2s.begin() + 500, r2s.end());
+    const double r2 = r2s[500];
+    const bool sorted = state.range(0) != 0;
+    std::size_t found = 0;
+    for (auto _ : state) {
+        std::vector<ks::Neighbor> nn;
+        found = 0;
+        for (std::size_t i = 0; i < d.points.size(); i += 4) {
+            tree.radius_search_squared(d.points[i], r2, nn, sorted);
+            found += nn.size();
+        }
+        benchmark::DoNotOptimize(found);
+    }
+    state.counters["mean_found"] = static_cast<double>(found) / static_cast<double>(kPoints / 4);
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * kPoints / 4));
+}
+BENCHMARK(BM_kintsugi_radius60)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(2);
+
 void BM_cgal_knn10_1thread(benchmark::State& state) {
     const auto& d = data();
     CTree tree(d.cgal_points.begin(), d.cgal_points.end());
@@ -145,45 +201,19 @@ void BM_cgal_knn10_1thread(benchmark::State& state) {
 }
 BENCHMARK(BM_cgal_knn10_1thread)->Unit(benchmark::kMillisecond)->Iterations(2);
 
-/// Console output plus the ratios against CGAL at the end.
-class RatioReporter : public benchmark::ConsoleReporter {
-public:
-    void ReportRuns(const std::vector<Run>& runs) override {
-        for (const auto& r : runs)
-            if (!r.error_occurred) ms_[r.benchmark_name()] = r.GetAdjustedRealTime();
-        ConsoleReporter::ReportRuns(runs);
-    }
-    void Finalize() override {
-        ConsoleReporter::Finalize();
-        auto ratio = [&](const char* ours, const char* peer) {
-            const auto a = find(ours), b = find(peer);
-            if (a > 0 && b > 0)
-                std::printf("  %-28s %9.1f ms   %-24s %9.1f ms   ratio (peer / kintsugi) %.2fx\n", ours, a, peer, b,
-                            b / a);
-        };
-        std::printf("\nInput: %s\n", data().source.c_str());
-        ratio("BM_kintsugi_build", "BM_cgal_build");
-        ratio("BM_kintsugi_knn10_1thread", "BM_cgal_knn10_1thread");
-        ratio("BM_kintsugi_knn10_parallel", "BM_cgal_knn10_1thread");
-    }
-
-private:
-    double find(const std::string& prefix) const {
-        for (const auto& [name, t] : ms_)
-            if (name.rfind(prefix, 0) == 0 && (name.size() == prefix.size() || name[prefix.size()] == '/')) return t;
-        return -1;
-    }
-    std::map<std::string, double> ms_;
-};
-
 }  // namespace
 
 int main(int argc, char** argv) {
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     std::printf("Input: %s\n", data().source.c_str());
-    RatioReporter reporter;
-    benchmark::RunSpecifiedBenchmarks(&reporter);
-    benchmark::Shutdown();
-    return 0;
+    return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
+        std::printf("\nInput: %s\n", data().source.c_str());
+        r.print_cpu_ratio("BM_kintsugi_build", "BM_cgal_build");
+        r.print_cpu_ratio("BM_kintsugi_knn10_1thread", "BM_cgal_knn10_1thread");
+        r.print_ratio("BM_kintsugi_knn10_parallel", "BM_cgal_knn10_1thread");
+        std::printf("Leaf size (10-NN, 1 thread; default %zu):\n", ks::KdTreeParams{}.leaf_size);
+        for (int leaf : {6, 8, 10, 12, 16, 24})
+            r.print_cpu_ratio("BM_kintsugi_knn10_leaf/" + std::to_string(leaf), "BM_cgal_knn10_1thread");
+        std::printf("Radius search, unsorted vs sorted (1 thread):\n");
+        r.print_cpu_ratio("BM_kintsugi_radius60/0", "BM_kintsugi_radius60/1");
+    });
 }

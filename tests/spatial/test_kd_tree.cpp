@@ -309,3 +309,64 @@ TEST_CASE_TEMPLATE("KdTree over every point-set adapter gives the brute-force an
         CHECK(tree.nearest(q).index == brute_knn(pts, q, 1)[0].index);
     }
 }
+
+TEST_CASE("KdTree unsorted radius search: the same set as the sorted one, in a repeatable order") {
+    const auto pts = random_points(4000, 11);
+    const ks::KdTree tree(pts);
+    const auto queries = random_points(80, 12);
+    std::vector<ks::Neighbor> sorted, unsorted, again;
+    std::size_t out_of_order = 0;
+    for (std::size_t qi = 0; qi < queries.size(); ++qi) {
+        // Exact boundary: the distance to some point (inclusive, as the sorted search).
+        const double r2 = sq_dist(queries[qi], pts[qi * 31]);
+        tree.radius_search_squared(queries[qi], r2, sorted);
+        tree.radius_search_squared(queries[qi], r2, unsorted, false);
+        CHECK(std::any_of(unsorted.begin(), unsorted.end(), [&](const ks::Neighbor& n) { return n.index == qi * 31; }));
+        for (std::size_t i = 1; i < unsorted.size(); ++i)
+            out_of_order += unsorted[i].squared_distance < unsorted[i - 1].squared_distance ? 1 : 0;
+        // Same answer twice (the order depends only on the tree and the query).
+        tree.radius_search_squared(queries[qi], r2, again, false);
+        check_same(again, unsorted);
+        auto resorted = unsorted;
+        std::sort(resorted.begin(), resorted.end(), [](const ks::Neighbor& a, const ks::Neighbor& b) {
+            return a.squared_distance < b.squared_distance ||
+                   (a.squared_distance == b.squared_distance && a.index < b.index);
+        });
+        check_same(resorted, sorted);
+        check_same(sorted, brute_radius(pts, queries[qi], r2));
+    }
+    // The unsorted order really is the tree's (otherwise the flag would be untested).
+    CHECK(out_of_order > 0);
+    // Negative radius and empty tree: nothing.
+    tree.radius_search_squared(queries[0], -1.0, unsorted, false);
+    CHECK(unsorted.empty());
+    CHECK_THROWS_AS(tree.radius_search_squared(queries[0], std::nan(""), unsorted, false), ks::invalid_input);
+}
+
+TEST_CASE("KdTree leaf size changes the tree, never the answers") {
+    const auto pts = grid_points(9);  // many exact ties
+    const ks::KdTree ref(pts);
+    CHECK(ref.leaf_size() == ks::KdTreeParams{}.leaf_size);
+    std::vector<ks::Neighbor> a, b;
+    for (std::size_t leaf : {std::size_t{1}, std::size_t{3}, std::size_t{8}, std::size_t{32}, std::size_t{1000}}) {
+        const ks::KdTree t(pts, ks::KdTreeParams{.leaf_size = leaf});
+        CHECK(t.leaf_size() == leaf);
+        for (std::size_t qi = 0; qi < 40; ++qi) {
+            const ks::Vec3 q = pts[qi * 17] + ks::Vec3(0.5, qi % 2 ? 0.5 : 0.0, 0.0);
+            for (std::size_t k : {std::size_t{1}, std::size_t{6}, std::size_t{19}}) {
+                t.knn(q, k, a);
+                ref.knn(q, k, b);
+                check_same(a, b);
+                check_same(a, brute_knn(pts, q, k));
+            }
+            t.radius_search_squared(q, 2.25, a);
+            check_same(a, brute_radius(pts, q, 2.25));
+            CHECK(t.nearest(q).index == ref.nearest(q).index);
+        }
+    }
+    // Through a point-set adapter too.
+    const ks::KdTree viaadapter(ks::PointCloud{pts, {}, {}}, ks::KdTreeParams{.leaf_size = 4});
+    CHECK(viaadapter.size() == pts.size());
+    CHECK_THROWS_WITH_AS(ks::KdTree(pts, ks::KdTreeParams{.leaf_size = 0}), doctest::Contains("leaf_size"),
+                         ks::invalid_input);
+}

@@ -302,3 +302,57 @@ TEST_CASE_TEMPLATE("Octree: over any PointSet container", Container, VecPts, Poi
     CHECK(t.point_indices() == ref.point_indices());
     check_tiling_and_points(t, base);
 }
+
+// The cells of a ball with their 8 corners inside, among a wanted subset, as the PU
+// cover asks for them: visit_cells_sparse (with a classify that says 2 for nodes
+// inside the ball) and visit_cells with a skip must both give the brute-force answer.
+TEST_CASE("Octree: sparse visits of the cells inside a ball match brute force") {
+    const auto pts = sample_points(3000, 21);
+    const ks::Octree t(pts, {.max_level = 7});
+    std::mt19937 rng(5);
+    std::vector<char> wanted(t.size());
+    for (auto& w : wanted) w = (rng() % 3 != 0) ? 1 : 0;  // two thirds still wanted
+    // next(first, last): the first wanted cell in [first, last), else last.
+    auto next = [&](ks::Index f, ks::Index l) {
+        while (f < l && !wanted[f]) ++f;
+        return f;
+    };
+    auto skip = [&](ks::Index f, ks::Index l) { return next(f, l) >= l; };
+    auto far2 = [](const ks::Vec3& c, const ks::Vec3& lo, const ks::Vec3& hi) {
+        double d = 0;
+        for (int k = 0; k < 3; ++k) {
+            const double a = std::max(std::abs(c[k] - lo[k]), std::abs(c[k] - hi[k]));
+            d += a * a;
+        }
+        return d;
+    };
+    std::uniform_real_distribution<double> u(0, 1);
+    std::size_t total = 0;
+    for (int q = 0; q < 60; ++q) {
+        const ks::Vec3 c = t.cube_min() + t.cube_side() * ks::Vec3(u(rng), u(rng), u(rng));
+        const double r = t.cube_side() * (q < 30 ? 0.02 + 0.1 * u(rng) : 0.3 * u(rng));
+        std::vector<ks::Index> expect;
+        for (ks::Index i = 0; i < t.size(); ++i)
+            if (wanted[i] && far2(c, t.cell_min(i), t.cell_max(i)) < r * r) expect.push_back(i);
+        for (int variant = 0; variant < 2; ++variant) {
+            std::vector<ks::Index> got;
+            int last = 0;
+            auto classify = [&](const ks::Vec3& lo, const ks::Vec3& hi) {
+                ks::Vec3 n = c.cwiseMax(lo).cwiseMin(hi);
+                if (!((n - c).squaredNorm() < r * r)) return last = 0;
+                return last = far2(c, lo, hi) < r * r ? 2 : 1;
+            };
+            auto visit = [&](ks::Index i) {
+                if (last == 2 && wanted[i]) got.push_back(i);
+            };
+            const ks::Vec3 lo = c - ks::Vec3::Constant(r), hi = c + ks::Vec3::Constant(r);
+            if (variant == 0)
+                t.visit_cells_sparse(lo, hi, classify, visit, next);
+            else
+                t.visit_cells(lo, hi, classify, visit, skip);
+            CHECK(got == expect);  // Morton order = index order, each once
+        }
+        total += expect.size();
+    }
+    CHECK(total > 100);
+}

@@ -289,8 +289,8 @@ public:
     template <class Classify, class Visit>
     void visit_cells(Classify&& classify, Visit&& visit) const {
         if (cells_.empty()) return;
-        auto never = [](Index, Index) { return false; };
-        descend(0, 0, 0, cells_.size(), classify, visit, never);
+        auto every = [](Index first, Index) { return first; };
+        descend(0, 0, 0, cells_.size(), classify, visit, every);
     }
 
     /// Same as visit_cells(classify, visit), restricted to the cells that meet the box
@@ -303,10 +303,23 @@ public:
     }
 
     /// Same, with `skip(first, last)`: called on nodes holding more than one cell
-    /// (cells [first, last) in Morton order) before `classify`; returning true prunes
-    /// the node (e.g. when none of its cells is still of interest).
+    /// (cells [first, last) in Morton order) before `classify`, and on the remaining
+    /// cells of a node classified 2; returning true prunes them (e.g. when none of
+    /// them is still of interest).
     template <class Classify, class Visit, class Skip>
     void visit_cells(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit, Skip&& skip) const {
+        visit_cells_sparse(lo, hi, classify, visit,
+                           [&](Index first, Index last) { return last - first > 1 && skip(first, last) ? last : first; });
+    }
+
+    /// Same, for a sparse set of wanted cells: `next(first, last)` returns the first
+    /// cell index in [first, last) that may still be wanted, or `last` when none is.
+    /// Nodes with none are pruned before `classify`, and the cells of a node classified
+    /// 2 are enumerated through `next`, so the cost follows the wanted cells rather than
+    /// all cells (e.g. with a hierarchical bit set of the cells still of interest).
+    /// Every cell for which `visit` is called satisfies next(c, c + 1) == c.
+    template <class Classify, class Visit, class Next>
+    void visit_cells_sparse(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit, Next&& next) const {
         if (cells_.empty()) return;
         const Scalar n = static_cast<Scalar>(std::uint64_t{1} << max_level_);
         std::array<std::int64_t, 3> a{}, b{};
@@ -345,7 +358,7 @@ public:
         for (int i = 0; i < ns; ++i) {
             const std::uint64_t code = starts[static_cast<std::size_t>(i)];
             const Index first = locate_code(code);
-            if (cells_[first].level <= static_cast<std::uint32_t>(m)) {
+            if (levels_[first] <= static_cast<std::uint32_t>(m)) {
                 // the node lies inside one cell
                 if (first == last_visited) continue;
                 const Vec3 cl = cell_min(first);
@@ -355,7 +368,7 @@ public:
             const std::uint64_t end = code + (std::uint64_t{1} << (3 * sh));
             const auto last = static_cast<Index>(
                 std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(first), codes_.end(), end) - codes_.begin());
-            descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once, skip);
+            descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once, next);
         }
     }
 
@@ -518,7 +531,11 @@ private:
             }
         }
         codes_.resize(cells_.size());
-        for (std::size_t c = 0; c < cells_.size(); ++c) codes_[c] = cells_[c].code;
+        levels_.resize(cells_.size());
+        for (std::size_t c = 0; c < cells_.size(); ++c) {
+            codes_[c] = cells_[c].code;
+            levels_[c] = static_cast<std::uint8_t>(cells_[c].level);
+        }
 
         // Lookup table: for each block of a coarse grid, the cell holding its corner.
         {
@@ -553,54 +570,76 @@ private:
             out.push_back(j);
     }
 
-    template <class Classify, class Visit, class Skip>
+    // Node (level, code) covering cells [first, last): pruned when `next` offers none of
+    // its cells, else classified, then handed to descend_classified.
+    template <class Classify, class Visit, class Next>
     void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Classify& classify,
-                 Visit& visit, Skip& skip) const {
+                 Visit& visit, Next& next) const {
+        if (last - first > 1 && next(first, last) >= last) return;
         const auto a = detail::morton_decode(code);
-        descend_xyz(level, code, a[0], a[1], a[2], first, last, classify, visit, skip);
-    }
-
-    // Node (level, code and minimum corner (x, y, z) in finest units) covers cells [first, last).
-    template <class Classify, class Visit, class Skip>
-    void descend_xyz(std::uint32_t level, std::uint64_t code, std::uint32_t x, std::uint32_t y, std::uint32_t z,
-                     Index first, Index last, Classify& classify, Visit& visit, Skip& skip) const {
-        if (last - first > 1 && skip(first, last)) return;
         const Scalar s = unit_ * static_cast<Scalar>(std::uint32_t{1} << (max_level_ - static_cast<int>(level)));
-        const Vec3 lo(cube_min_[0] + unit_ * x, cube_min_[1] + unit_ * y, cube_min_[2] + unit_ * z);
+        const Vec3 lo(cube_min_[0] + unit_ * a[0], cube_min_[1] + unit_ * a[1], cube_min_[2] + unit_ * a[2]);
         const int cls = static_cast<int>(classify(lo, Vec3(lo[0] + s, lo[1] + s, lo[2] + s)));
         if (cls == 0) return;
-        if (cells_[first].level <= level) {
+        descend_classified(level, code, a[0], a[1], a[2], first, last, cls, classify, visit, next);
+    }
+
+    // First index in [b, e) whose code is >= code.
+    [[nodiscard]] Index find_code(Index b, Index e, std::uint64_t code) const {
+        if (e - b <= 32) {
+            while (b < e && codes_[b] < code) ++b;
+            return b;
+        }
+        return static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(b),
+                                                   codes_.begin() + static_cast<std::ptrdiff_t>(e), code) -
+                                  codes_.begin());
+    }
+
+    // Node (level, code, minimum corner (x, y, z) in finest units) covering cells
+    // [first, last), just classified `cls` != 0 (no classify call since, so a visit
+    // made here follows the classify of a box holding the visited cell). Children are
+    // classified first and their cell ranges looked up only when needed: the leaves
+    // tile the node, so child k's first cell has exactly the child's code, and a leaf
+    // child needs no search for its end.
+    template <class Classify, class Visit, class Next>
+    void descend_classified(std::uint32_t level, std::uint64_t code, std::uint32_t x, std::uint32_t y,
+                            std::uint32_t z, Index first, Index last, int cls, Classify& classify, Visit& visit,
+                            Next& next) const {
+        if (levels_[first] <= level) {
             visit(first);
             return;
         }
         if (cls >= 2) {
-            // every cell is wanted; runs of 64 cells that `skip` rejects are jumped over
-            for (Index c = first; c < last;) {
-                if (c + 64 <= last && skip(c, c + 64)) {
-                    c += 64;
-                    continue;
-                }
-                visit(c++);
-            }
+            // every cell is wanted: enumerate those `next` still offers
+            for (Index c = next(first, last); c < last; c = next(c + 1, last)) visit(c);
             return;
         }
         const int shift = 3 * (max_level_ - static_cast<int>(level) - 1);
         const std::uint32_t half = std::uint32_t{1} << (max_level_ - static_cast<int>(level) - 1);
-        Index b = first;
+        const Scalar hs = unit_ * static_cast<Scalar>(half);
+        const bool eight_leaves = last - first == 8;  // then cell first + k is child k
+        Index b = first;  // no child examined later starts before b
         for (std::uint32_t k = 0; k < 8; ++k) {
-            const std::uint64_t child_end = code + (std::uint64_t{k + 1} << shift);
-            Index e = b;
-            if (last - b <= 32) {
-                while (e < last && codes_[e] < child_end) ++e;
-            } else {
-                e = static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(b),
-                                                        codes_.begin() + static_cast<std::ptrdiff_t>(last), child_end) -
-                                       codes_.begin());
+            const std::uint32_t cx = x + ((k & 1) ? half : 0), cy = y + ((k & 2) ? half : 0),
+                                cz = z + ((k & 4) ? half : 0);
+            const Vec3 lo(cube_min_[0] + unit_ * cx, cube_min_[1] + unit_ * cy, cube_min_[2] + unit_ * cz);
+            const int ccls = static_cast<int>(classify(lo, Vec3(lo[0] + hs, lo[1] + hs, lo[2] + hs)));
+            if (ccls == 0) continue;
+            if (eight_leaves) {
+                visit(first + k);
+                continue;
             }
-            if (e > b)
-                descend_xyz(level + 1, code + (std::uint64_t{k} << shift), x + ((k & 1) ? half : 0),
-                            y + ((k & 2) ? half : 0), z + ((k & 4) ? half : 0), b, e, classify, visit, skip);
-            b = e;
+            const std::uint64_t child = code + (std::uint64_t{k} << shift);
+            const Index cb = find_code(b, last, child);
+            if (levels_[cb] <= level + 1) {  // the child is a leaf
+                visit(cb);
+                b = cb + 1;
+                continue;
+            }
+            const Index ce = k == 7 ? last : find_code(cb + 1, last, child + (std::uint64_t{1} << shift));
+            b = ce;
+            if (next(cb, ce) >= ce) continue;
+            descend_classified(level + 1, child, cx, cy, cz, cb, ce, ccls, classify, visit, next);
         }
     }
 
@@ -610,6 +649,7 @@ private:
     Scalar unit_ = 0;  // side of a finest cell
     std::vector<OctreeCell> cells_;
     std::vector<std::uint64_t> codes_;
+    std::vector<std::uint8_t> levels_;  // cells_[c].level, compact for the descents
     std::vector<Index> order_;
     std::vector<Index> block_start_;  // see locate_code
     int block_shift_ = 0;

@@ -17,6 +17,7 @@
 #include <kintsugi/spatial/octree.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -134,6 +135,11 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     thread_local std::vector<Neighbor> nb;
     thread_local std::vector<Index> idx;
     thread_local std::vector<Scalar> dist;
+    // The sorted neighbours of the last search; the bisection tests read prefixes of
+    // the largest one (the points closer than the tested radius, in the same order a
+    // search of that radius would give). Searching ahead (one search at 1.5 or 2.25 x
+    // the radius for several growth steps) measured slower: the search's cost follows
+    // the points it returns, and most candidates stop at r_min or 1.5 r_min.
     auto query = [&](Scalar R) {
         // Slightly larger than R so that every point with distance < R is included.
         in.tree->radius_search_squared(out.c, R * R * (1 + 1e-12), nb);
@@ -144,6 +150,8 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
             dist[j] = std::sqrt(nb[j].squared_distance);
         }
     };
+    // The nearest input point to c: the head of the list when it holds any point.
+    auto nearest = [&]() { return nb.empty() ? in.tree->nearest(out.c) : nb.front(); };
 
     // Every ball smaller than the distance to the nearest point is empty and passes
     // eq. (6) trivially, so the search starts there (far from the data this saves
@@ -152,7 +160,7 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     query(r_min);
     if (pu_radius_ok(in, out.c, r_min, idx, dist)) {
         // (only needed when the ball of radius r_min is empty)
-        const Scalar d0 = dist.empty() ? std::sqrt(in.tree->nearest(out.c).squared_distance) : Scalar(0);
+        const Scalar d0 = nb.empty() ? std::sqrt(nearest().squared_distance) : Scalar(0);
         Scalar lo = std::max(r_min, std::min(d0, r_cap)), hi = lo;
         bool bracketed = false;
         while (hi < r_cap) {
@@ -192,7 +200,7 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     } else {
         // No point in the ball (far from the data) or normals cancelling out: use the
         // tangent plane of the nearest input point, which has the right sign far away.
-        const Neighbor nn = in.tree->nearest(out.c);
+        const Neighbor nn = nearest();
         out.m = (*in.normals)[nn.index];
         out.d = (*in.points)[nn.index];
         out.fallback = true;
@@ -253,6 +261,57 @@ inline std::vector<Index> pu_random_order(std::size_t n, std::uint64_t seed) {
     return order;
 }
 
+/// The candidate cells not covered yet: a 64-ary hierarchical bit set (bit i of a
+/// word one level up says whether word i below has a bit set), so that the next
+/// uncovered cell from any position is found in a few word operations and fully
+/// covered octree nodes are pruned at once.
+class PUCellSet {
+public:
+    static constexpr std::size_t npos = static_cast<std::size_t>(-1);
+
+    /// All of 0..n-1.
+    explicit PUCellSet(std::size_t n) {
+        std::size_t bits = n;
+        do {
+            const std::size_t words = (bits + 63) / 64;
+            std::vector<std::uint64_t> w(words, ~std::uint64_t{0});
+            if (bits % 64 != 0) w.back() = (std::uint64_t{1} << (bits % 64)) - 1;
+            levels_.push_back(std::move(w));
+            bits = words;
+        } while (bits > 1);
+    }
+    [[nodiscard]] bool contains(std::size_t i) const { return (levels_[0][i >> 6] >> (i & 63)) & 1u; }
+    void erase(std::size_t i) {
+        for (auto& level : levels_) {
+            std::uint64_t& w = level[i >> 6];
+            w &= ~(std::uint64_t{1} << (i & 63));
+            if (w != 0) return;
+            i >>= 6;
+        }
+    }
+    /// The first element in [first, last), or last when there is none.
+    [[nodiscard]] std::size_t next(std::size_t first, std::size_t last) const {
+        if (first >= last) return last;
+        const std::size_t r = find(0, first);
+        return r < last ? r : last;
+    }
+
+private:
+    // First set bit at position >= pos of level `lev`, or npos.
+    [[nodiscard]] std::size_t find(std::size_t lev, std::size_t pos) const {
+        const auto& W = levels_[lev];
+        const std::size_t w = pos >> 6;
+        if (w >= W.size()) return npos;
+        const std::uint64_t b = W[w] & (~std::uint64_t{0} << (pos & 63));
+        if (b != 0) return (w << 6) | static_cast<std::size_t>(std::countr_zero(b));
+        if (lev + 1 == levels_.size()) return npos;  // the top level is a single word
+        const std::size_t nw = find(lev + 1, w + 1);
+        if (nw == npos) return npos;
+        return (nw << 6) | static_cast<std::size_t>(std::countr_zero(W[nw]));
+    }
+    std::vector<std::vector<std::uint64_t>> levels_;
+};
+
 /// Statistics of the cover.
 struct PUCoverStats {
     std::size_t candidates = 0;       ///< octree cells (= initial candidates)
@@ -271,19 +330,11 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
     const std::size_t n = oct.size();
     stats.candidates = n;
     const std::vector<Index> order = pu_random_order(n, in.seed);
-    std::vector<char> covered(n, 0);
-    // Uncovered cells per block of 64 consecutive cells (Morton order): octree nodes
-    // whose cells are all covered already are pruned from the covering queries.
-    constexpr std::size_t kBlock = 64;
-    std::vector<std::uint32_t> block_uncovered((n + kBlock - 1) / kBlock, 0);
-    for (std::size_t c = 0; c < n; ++c) ++block_uncovered[c / kBlock];
-    // Conservative (whole blocks): true only when every block meeting [first, last)
-    // is fully covered.
-    auto all_covered = [&](Index first, Index last) {
-        for (std::size_t b = first / kBlock, e = (last - 1) / kBlock; b <= e; ++b)
-            if (block_uncovered[b] != 0) return false;
-        return true;
-    };
+    // Uncovered cells: octree nodes whose cells are all covered already are pruned
+    // from the covering queries, and the cells of nodes inside a ball are enumerated
+    // among the uncovered ones only.
+    PUCellSet uncovered(n);
+    auto next_uncovered = [&](Index first, Index last) { return uncovered.next(first, last); };
     std::vector<PUSupportData> supports;
     const Scalar half_diag_min =
         Scalar(0.5) * std::sqrt(Scalar(3)) * oct.cube_side() / static_cast<Scalar>(1u << oct.max_level());
@@ -298,7 +349,7 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
     while (pos < n) {
         batch.clear();
         while (pos < n && batch.size() < batch_size) {
-            if (!covered[order[pos]]) batch.push_back(order[pos]);
+            if (uncovered.contains(order[pos])) batch.push_back(order[pos]);
             ++pos;
         }
         fits.resize(batch.size());
@@ -317,28 +368,29 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             const Scalar r_in = std::max(Scalar(0), s.r - half_diag_min);
             const Scalar r_in2 = r_in * r_in;
             int last_class = 0;
-            // Cells reached through a node inside the ball are inside; others are tested.
-            oct.visit_cells(
+            // visit(c) comes right after classify on c's own box or on a node holding c
+            // (Octree::visit_cells_sparse), so last_class == 2 says that c has its 8 corners
+            // in the ball: the same test as pu_cell_inside_ball, on the same numbers.
+            oct.visit_cells_sparse(
                 s.c - Vec3::Constant(r_in), s.c + Vec3::Constant(r_in),
                 [&](const Vec3& lo, const Vec3& hi) {
                     if (!(pu_box_distance_squared(s.c, lo, hi) < r_in2)) return last_class = 0;
                     return last_class = (pu_box_far_squared(s.c, lo, hi) < r2 ? 2 : 1);
                 },
                 [&](Index c) {
-                    if (!covered[c] && (last_class == 2 || pu_cell_inside_ball(oct, c, s.c, s.r))) list.push_back(c);
+                    if (last_class == 2 && uncovered.contains(c)) list.push_back(c);
                 },
-                all_covered);
+                next_uncovered);
         }, 1);
         stats.evaluated += batch.size();
         std::size_t accepted = 0;
         for (std::size_t k = 0; k < batch.size(); ++k) {
-            if (covered[batch[k]]) continue;  // covered by an earlier support of this batch
+            if (!uncovered.contains(batch[k])) continue;  // covered by an earlier support of this batch
             ++accepted;
             const PUSupportData& s = fits[k];
             for (const Index c : inside[k])
-                if (!covered[c]) {
-                    covered[c] = 1;
-                    --block_uncovered[c / kBlock];
+                if (uncovered.contains(c)) {
+                    uncovered.erase(c);
                     --remaining;
                 }
             if (s.fallback) ++stats.fallback;
