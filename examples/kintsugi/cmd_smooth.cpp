@@ -1,7 +1,7 @@
 // This Source Code Form is subject to the terms of the Mozilla Public
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
-// `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d 0.2] [--edge-threshold T]
+// `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d 0.14] [--edge-threshold T]
 // [--edge-iterations N] [--face-iterations N] [--no-features] [--features FEATURES.ply]`:
 // feature-aware bilateral smoothing; the sharp edges can be written as PLY polylines.
 #include "common.hpp"
