@@ -341,6 +341,28 @@ TEST_CASE("the result does not depend on the thread count") {
     }
     (void)ks::smooth_feature_bilateral(b);
     CHECK(a.vertices == b.vertices);
+
+    // Real data with sharp edges found (so the edge filters and the sharp-edge walks of
+    // the face filters run), and the detection alone: bit-identical with 1 and 2 threads.
+    const auto block = ks::read_mesh(test_data("block_noisy.ply"));
+    auto c = block, d = block;
+    ks::FeatureBilateralResult rc, rd;
+    ks::SharpFeatureResult fc, fd;
+    {
+        ks::ThreadLimit one(1);
+        rc = ks::smooth_feature_bilateral(c);
+        fc = ks::detect_sharp_features(block);
+    }
+    {
+        ks::ThreadLimit two(2);
+        rd = ks::smooth_feature_bilateral(d);
+        fd = ks::detect_sharp_features(block);
+    }
+    CHECK(rc.feature_vertices > 500);
+    CHECK(rc.features.sharp_edges == rd.features.sharp_edges);
+    CHECK(fc.features.sharp_edges == fd.features.sharp_edges);
+    CHECK(fc.features.edge_strength == fd.features.edge_strength);
+    CHECK(c.vertices == d.vertices);
 }
 
 TEST_CASE("open meshes: boundary edges are not sharp, boundary vertices move only across the surface") {
