@@ -279,7 +279,7 @@ inline std::vector<unsigned char> used_vertices(const IndexedMesh& m) {
 /// The detection shared by both public functions.
 inline FeatureData run_detection(const IndexedMesh& m, const MeshTopology& topo, Scalar L,
                                  const std::vector<unsigned char>& has_face, const SharpFeatureParams& p,
-                                 Progress& progress) {
+                                 Progress& progress, Workspace& ws) {
     FilterSettings pre;
     pre.c = p.prefilter_scale;
     pre.d = p.presmooth_range;
@@ -289,7 +289,7 @@ inline FeatureData run_detection(const IndexedMesh& m, const MeshTopology& topo,
                                        {p.voting_cube, p.edge_threshold, p.direction_threshold,
                                         p.boundary_edges_sharp, p.prefilter_iterations, p.prefilter_scale,
                                         p.crease_test},
-                                       pre, p.presmooth_iterations, has_face, progress);
+                                       pre, p.presmooth_iterations, has_face, progress, ws);
 }
 
 inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
@@ -401,7 +401,8 @@ template <TriangleMesh M>
         const MeshTopology topo(m.vertices.size(), m.faces);
         const Scalar L = detail::fbs::checked_mean_edge(fn, m.vertices, topo);
         progress.stage("features", 0.05, 1.0);
-        auto fd = detail::fbs::run_detection(m, topo, L, detail::fbs::used_vertices(m), params, progress);
+        detail::fbs::Workspace ws;
+        auto fd = detail::fbs::run_detection(m, topo, L, detail::fbs::used_vertices(m), params, progress, ws);
         result.features = detail::fbs::to_public(std::move(fd), L);
         detail::fbs::restore_order(result.features, so.order);
         result.timings = progress.finish();
@@ -474,9 +475,10 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
                                      params.face_iterations, params.features, params.normal_iterations,
                                      params.vertex_iterations};
         fbs::Barriers barriers;
+        fbs::Workspace ws;
         if (params.features) {
             progress.stage("features", 0.02, 0.45);
-            auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress);
+            auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress, ws);
             std::vector<unsigned char> on_edge(nv, 0);
             for (const auto& e : fd.sharp_edges) on_edge[e[0]] = on_edge[e[1]] = 1;
             std::vector<Index> edge_vertices;
@@ -505,7 +507,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         for (std::size_t it = 0; it < params.face_iterations; ++it) {
             const double n = static_cast<double>(params.face_iterations);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
-                                static_cast<double>(it + 1) / n, &barriers);
+                                static_cast<double>(it + 1) / n, ws, &barriers);
         }
         result.timings = progress.finish();
     } catch (const detail::cancelled_exception&) {

@@ -119,7 +119,8 @@ public:
         const Scalar extent = (hi - lo_).maxCoeff();
         cell_ = std::max({cell, extent / Scalar((1 << 20) - 2), std::numeric_limits<Scalar>::min()});
         inv_ = 1 / cell_;
-        std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+        auto& order = order_;
+        order.clear();
         order.reserve(n);
         for (std::size_t i = 0; i < n; ++i)
             if (!keep_if_positive || (*keep_if_positive)[i] > 0)
@@ -132,7 +133,8 @@ public:
         index_.resize(order.size());
         point_.resize(order.size());
         start_.clear();
-        std::vector<std::uint64_t> keys;
+        auto& keys = keys_;
+        keys.clear();
         for (std::size_t k = 0; k < order.size(); ++k) {
             if (k == 0 || order[k].first != order[k - 1].first) {
                 keys.push_back(order[k].first);
@@ -156,8 +158,10 @@ public:
         // The non-empty cells among the 3×3×3 around each cell, in (z, y, x) order: a
         // query of half side ≤ cell from a point inside a cell visits only those.
         const std::size_t nc = keys.size();
-        std::vector<std::array<std::uint32_t, 27>> nbr(nc);
-        std::vector<std::uint8_t> count(nc, 0);
+        auto& nbr = nbr_scratch_;
+        auto& count = count_scratch_;
+        nbr.resize(nc);
+        count.assign(nc, 0);
         parallel_for(0, nc, [&](std::size_t c) {
             const std::array<std::int64_t, 3> g{static_cast<std::int64_t>(keys[c] & mask21_),
                                                 static_cast<std::int64_t>((keys[c] >> 21) & mask21_),
@@ -248,6 +252,11 @@ private:
     std::vector<Vec3> point_;
     std::vector<std::uint64_t> table_key_;
     std::size_t mask_ = 0;
+    // Scratch of build(), kept so that rebuilding a grid allocates nothing new.
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> order_;
+    std::vector<std::uint64_t> keys_;
+    std::vector<std::array<std::uint32_t, 27>> nbr_scratch_;
+    std::vector<std::uint8_t> count_scratch_;
 };
 
 /// Gaussian exp(-x²/(2σ²)) (unnormalised: the filters normalise by k_r).
@@ -304,13 +313,15 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
                           Gather&& gather) {
     constexpr std::size_t chunk = Neighbourhoods::chunk;
     const std::size_t nc = (n + chunk - 1) / chunk;
-    out.parts.assign(nc, {});
+    out.parts.resize(nc);  // parts keep their capacity from an earlier build
     const std::size_t blocks = std::clamp<std::size_t>(nc / 4, 1, 20);
     for (std::size_t blk = 0; blk < blocks; ++blk) {
         parallel_for(nc * blk / blocks, nc * (blk + 1) / blocks, [&](std::size_t c) {
             const std::size_t first = c * chunk, last = std::min(n, first + chunk);
             Neighbourhoods::Part& part = out.parts[c];
             part.offset.assign(last - first + 1, 0);
+            part.index.clear();
+            part.weight.clear();
             for (std::size_t i = first; i < last; ++i) {
                 gather(i, [&](Index q, Scalar w) {
                     part.index.push_back(static_cast<std::uint32_t>(q));
@@ -318,12 +329,18 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
                 });
                 part.offset[i - first + 1] = static_cast<std::uint32_t>(part.index.size());
             }
-            part.index.shrink_to_fit();
-            part.weight.shrink_to_fit();
         }, 1);
         progress.update(from + (to - from) * static_cast<double>(blk + 1) / static_cast<double>(blocks));
     }
 }
+
+/// Buffers reused by every pass of one run (grid, neighbour lists, face geometry), so
+/// that the repeated neighbourhood builds do not allocate and fault in fresh memory.
+struct Workspace {
+    CubeGrid grid;
+    Neighbourhoods lists;
+    FaceGeometry geometry;
+};
 
 /// Sharp edges as barriers for the face filters (features = true): a face t* in the
 /// cube of r counts only when it is reached from r's own faces by a walk over faces
@@ -387,12 +404,14 @@ inline Reach reach_faces(const Barriers& b, const std::vector<Vec3>& centroid, s
 inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& grid, std::vector<Vec3> normals,
                                         Scalar scale, std::size_t iterations, Progress& progress, double from,
                                         double to, const Barriers* barriers = nullptr,
-                                        const std::vector<unsigned char>* near = nullptr) {
+                                        const std::vector<unsigned char>* near = nullptr,
+                                        Neighbourhoods* lists = nullptr) {
     const std::size_t nf = normals.size();
     if (iterations == 0 || nf == 0) return normals;
     const Scalar s_mf = scale / 2, s_mg = 0.6, h = scale;
     const double q2 = from + (to - from) * 0.3;
-    Neighbourhoods nb;
+    Neighbourhoods local;
+    Neighbourhoods& nb = lists ? *lists : local;
     const GaussTable spatial(s_mf, 3 * h * h);
     build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& push) {
         if (g.area[t] == 0) return;
@@ -461,7 +480,7 @@ struct FeatureSettings {
 /// edge strength s_i = v2 / v1 and the sharp edges.
 inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
                                    const FaceGeometry& geo, Scalar mean_edge, const FeatureSettings& st,
-                                   Progress& progress, double from, double to) {
+                                   Progress& progress, double from, double to, Workspace& ws) {
     const std::size_t nv = V.size();
     FeatureData out;
     out.strength.assign(nv, 0);
@@ -470,10 +489,12 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
 
     const Scalar h = st.cube * mean_edge / 2;  // half side of the voting cube
     const Scalar falloff = h;                  // distance decay of the votes (see header)
-    const CubeGrid grid(geo.centroid, std::max(h, st.prefilter_scale * mean_edge), &geo.area);
+    CubeGrid& grid = ws.grid;
+    grid.build(geo.centroid, std::max(h, st.prefilter_scale * mean_edge), &geo.area);
     const double mid = from + (to - from) * (st.prefilter_iterations ? 0.5 : 0.0);
     const std::vector<Vec3> N = st.prefilter_iterations
-        ? filter_normals(geo, grid, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid)
+        ? filter_normals(geo, grid, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid,
+                         nullptr, nullptr, &ws.lists)
         : geo.normal;
     const auto& A = geo.area;
     blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
@@ -600,11 +621,13 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 /// sharp edge when `fixed` marks them). One call = one iteration.
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
                            const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
-                           Progress& progress, double from, double to, const Barriers* barriers = nullptr) {
-    FaceGeometry g;
+                           Progress& progress, double from, double to, Workspace& ws,
+                           const Barriers* barriers = nullptr) {
+    FaceGeometry& g = ws.geometry;
     compute_face_geometry(V, F, g);
     const std::size_t nv = V.size();
-    CubeGrid grid(g.centroid, st.c * L, &g.area);
+    CubeGrid& grid = ws.grid;
+    grid.build(g.centroid, st.c * L, &g.area);
     // Faces and vertices whose cube may hold a sharp-edge vertex walk over the faces.
     std::vector<unsigned char> near_face, near_vertex;
     if (barriers && !barriers->active()) barriers = nullptr;
@@ -632,7 +655,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
 
     // 3) normals, normal_iterations times.
     std::vector<Vec3> nf_ = filter_normals(g, grid, g.normal, st.c * L, st.normal_iterations, progress, from, mid,
-                                           barriers, &near_face);
+                                           barriers, &near_face, &ws.lists);
 
     // 4) vertices: r = i, q = t* (same cube, around p_i); I = Π_t, w = a_t*. Repeated
     // vertex_iterations times with the filtered normals n'_t, the centroids following
@@ -679,17 +702,18 @@ namespace kintsugi::detail::fbs {
 inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const std::vector<Face>& F,
                                                const MeshTopology& topo, Scalar L, const FeatureSettings& st,
                                                const FilterSettings& fs, std::size_t presmooth,
-                                               const std::vector<unsigned char>& has_face, Progress& progress) {
+                                               const std::vector<unsigned char>& has_face, Progress& progress,
+                                               Workspace& ws) {
     std::vector<Vec3> W = V;
     if (presmooth > 0) {
         const std::vector<unsigned char> none(V.size(), 0);
         for (std::size_t it = 0; it < presmooth; ++it)
             face_iteration(W, F, none, has_face, L, fs, progress, 0.5 * static_cast<double>(it) / presmooth,
-                           0.5 * static_cast<double>(it + 1) / presmooth);
+                           0.5 * static_cast<double>(it + 1) / presmooth, ws);
     }
     FaceGeometry geo;
     compute_face_geometry(W, F, geo);
-    return detect_features(W, F, topo, geo, L, st, progress, presmooth > 0 ? 0.5 : 0.0, 1.0);
+    return detect_features(W, F, topo, geo, L, st, progress, presmooth > 0 ? 0.5 : 0.0, 1.0, ws);
 }
 
 }  // namespace kintsugi::detail::fbs
