@@ -7,27 +7,31 @@
 //     deterministic noise of 0.3 mean edge lengths along the vertex normals; the full
 //     pipeline with default parameters, per stage, against kintsugi::smooth_taubin
 //     (30 iterations) and the same filters with features = false, in the same run;
-//  2. memory: peak resident set growth for 1x and 4x the faces (should be ~linear);
+//  2. memory: peak resident set growth for 1x and 4x the faces, each size in its own
+//     process (should be ~linear);
 //  3. accuracy table on ../shared/data/guided_denoising (Block0.4, SharpSphere0.3,
 //     Twelve0.5Impulsive): mean face-normal error (degrees) and vertex RMS (mean edge
 //     lengths) of ours, features = false, Taubin and CGAL's smooth_shape, each peer at the
 //     best setting of a small sweep. Printed at the end; skipped when the folder is absent.
 //
-// Measured 2026-11-23 on this 2-core machine shared with ~5 compiling engineers (load
-// average ~9, so wall times are ~4-5x what an idle machine gives), 589,824 faces:
-//   full pipeline 230 s wall (features 176 s, edge smoothing ~0 s (no crease of Twelve
-//   passes the 60° tests), face smoothing 53 s); features = false 50 s; Taubin(30) 2.4 s.
-//   The 5 s target is NOT met: the detection's pre-smoothing and pre-filtering run four
-//   filter-3 neighbourhood builds at c = 2 (~50 faces per cube, two kd-tree radius
-//   queries per face each) and the face stage ten filter-3 passes per iteration.
+// Measured 2026-11-23 on this 2-core machine, shared with other engineers' builds (load
+// average 4-5, so wall times are well above CPU time / 2), 589,824 faces:
+//   before (kd-tree radius queries, sorted, rebuilt per pass): 129 s wall (features 94.5 s,
+//   edge smoothing 2.2 s, face smoothing 34.3 s; 230 s in an earlier, busier run).
+//   now (grid hash, one gather per position update, Morton order, workspace): 24.3 s wall,
+//   16.1 s CPU over all threads (features 12.5 s, face smoothing 11.2 s wall; another run
+//   22.2 s wall / 14.9 s CPU); features = false 13.1 s; Taubin(30) 1.5 s. The 5 s target is
+//   NOT met: the detection's pre-smoothing (filter 3 at c = 2, ~50 faces per cube) and the
+//   30 filter-3 passes of the face stage dominate.
+//   Memory (peak growth, own process): 157 MB at 147,456 faces, 595 MB at 589,824 (x3.80).
 //   Accuracy (normal error deg / vertex RMS in |e|; Taubin and smooth_shape at their best):
-//     Block0.4       noisy 33.72/0.399  ours 8.33/0.168  features=false 8.45/0.169
-//                    Taubin 10.46/0.224  smooth_shape 12.69/0.312  sharp edges P/R 0.918/0.918
-//     SharpSphere0.3 noisy 33.01/0.301  ours 9.29/0.144  features=false 9.33/0.144
+//     Block0.4       noisy 33.72/0.399  ours 5.54/0.145  features=false 6.93/0.163
+//                    Taubin 10.46/0.224  smooth_shape 12.69/0.312  sharp edges P/R 0.928/0.924
+//     SharpSphere0.3 noisy 33.01/0.301  ours 8.46/0.144  features=false 8.54/0.147
 //                    Taubin 10.02/0.265  smooth_shape 10.91/0.278
-//     Twelve0.5Imp.  noisy 28.85/0.348  ours 8.68/0.155  features=false 8.68/0.155
+//     Twelve0.5Imp.  noisy 28.85/0.348  ours 8.02/0.156  features=false 8.03/0.157
 //                    Taubin  8.12/0.195  smooth_shape 11.47/0.333  (63° creases not found)
-//   Volume change +0.27 %, -0.17 %, +0.36 %.
+//   Volume change +0.14 %, -0.11 %, +0.44 %.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

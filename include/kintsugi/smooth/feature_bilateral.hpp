@@ -107,9 +107,11 @@
 /// the spatial weights, then runs its passes in single precision over them. Every
 /// output element is computed from the previous pass's values in a fixed neighbour
 /// order (Jacobi updates), so the result does not depend on the thread count. Memory
-/// is linear: about 0.95 KB per face at peak (137 MB at 147K faces, 531 MB at 590K).
-/// Time at 589,824 faces (bench/bench_smooth.cpp): 15.7 s of CPU over all threads
-/// (features 63 %, face smoothing 35 %); 17.4 s wall on the shared 2-core machine.
+/// is linear: about 1.1 KB per face at peak (157 MB at 147K faces, 595 MB at 590K).
+/// Time at 589,824 faces (bench/bench_smooth.cpp): 15–16 s of CPU over all threads,
+/// about half in the detection (its pre-smoothing with c = 2) and half in the face
+/// smoothing (30 filter-3 passes); 22–24 s wall on the shared 2-core machine (the
+/// kd-tree version took 129 s there).
 ///
 /// ## Boundaries, non-manifold input, degenerate faces
 /// Boundary edges are never sharp unless `boundary_edges_sharp`. Boundary vertices are
