@@ -192,10 +192,12 @@ public:
         const Vec3 a = (c - lo_) * inv_;
         const Scalar r = h * inv_;
         std::array<std::int64_t, 3> l{}, u{};
+        const Scalar top = static_cast<Scalar>(max_coord_);
         for (int k = 0; k < 3; ++k) {
-            l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(a[k] - r)));
-            u[k] = std::min<std::int64_t>(max_coord_, static_cast<std::int64_t>(std::floor(a[k] + r)));
-            if (!(a[k] + r >= 0) || u[k] < l[k]) return;
+            const Scalar lo = a[k] - r, hi = a[k] + r;
+            if (!(hi >= 0) || !(lo <= top)) return;  // outside the grid (or NaN): no point
+            l[k] = static_cast<std::int64_t>(std::floor(std::max(lo, Scalar(0))));
+            u[k] = static_cast<std::int64_t>(std::floor(std::min(hi, top)));
         }
         auto visit = [&](std::uint32_t cidx) {
             for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
@@ -235,7 +237,8 @@ private:
     std::array<std::int64_t, 3> coord(const Vec3& p) const {
         const Vec3 a = (p - lo_) * inv_;
         std::array<std::int64_t, 3> g{};
-        for (int k = 0; k < 3; ++k) g[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor(a[k])), 0, max_coord_);
+        for (int k = 0; k < 3; ++k)
+            g[k] = static_cast<std::int64_t>(std::floor(std::clamp(a[k], Scalar(0), static_cast<Scalar>(max_coord_))));
         return g;
     }
     static std::uint64_t key(const std::array<std::int64_t, 3>& g) {
