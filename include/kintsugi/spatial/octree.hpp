@@ -365,9 +365,10 @@ public:
                 if (static_cast<int>(classify(cl, Vec3(cl + Vec3::Constant(cell_side(first))))) != 0) visit_once(first);
                 continue;
             }
-            const std::uint64_t end = code + (std::uint64_t{1} << (3 * sh));
-            const auto last = static_cast<Index>(
-                std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(first), codes_.end(), end) - codes_.begin());
+            // the node holds whole cells (it is not inside one): its last cell is the one
+            // holding its last finest-grid cell (a table-narrowed search, not one over
+            // every cell after `first`)
+            const Index last = locate_code(code + (std::uint64_t{1} << (3 * sh)) - 1) + 1;
             descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once, next);
         }
     }
