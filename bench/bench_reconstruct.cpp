@@ -19,25 +19,30 @@
 //
 // Run: bench_reconstruct [--benchmark_filter=100000]
 //
-// Measured 2026-11-23 18:41-19:00 UTC on this 2-core machine shared with two other
-// engineers compiling (load average 3.3-5.3; wall times are inflated accordingly):
+// Measured 2026-11-23 19:05 UTC on this 2-core machine, nearly idle (load average
+// 0.6-2.7 during the PU runs), wall / CPU seconds, peak RSS of the run's process:
 //   100K points        PU+graph-cut   CGAL Poisson   Poisson / PU
-//     wall / CPU (s)    4.78 / 3.10    68.1 / 45.2    14x
-//     peak RSS (MB)     181            661            3.6x
-//     components        1              18
-//     closed manifold   yes            no (genus sum 426)
-//     mean to truth     0.040 %        16.3 %         409x
-//     Hausdorff         1.63 %         59.9 %
+//     wall / CPU (s)    1.91 / 2.67    41.0 / 41.0    21x wall
+//     peak RSS (MB)     181            663            3.7x
+//     components        1              15
+//     closed manifold   yes            no (genus sum 441)
+//     mean to truth     0.040 %        16.3 %         407x
+//     Hausdorff         1.63 %         71.6 %
 //     truth to result   0.040 %        0.056 %
-//     area / true area  1.000          14.7
-//     PU stages (wall s): pu_octree 0.22, pu_cover 2.39, pu_index 0.05, triangulation
-//     1.50, graph_cut 0.26, marching_tetrahedra 0.31, smoothing 0.03
-//   2M points (PU at level 9): PU+graph-cut 59.4 s wall / 44.9 s CPU, peak RSS 2.0 GB,
-//     1 closed manifold component, mean to truth 0.024 %, Hausdorff 3.1 %, truth to
-//     result 0.016 %, area ratio 1.013; stages: pu_octree 3.08, pu_cover 28.9, pu_index
-//     0.37, triangulation 18.6, graph_cut 5.3, marching_tetrahedra 2.5, smoothing 0.14.
-//     CGAL Poisson at 2M: did not finish in 900 s wall (killed at the time limit; 5.5 GB
-//     resident after ~5 min of CPU), i.e. > 15x the PU time.
+//     area / true area  1.000          14.6
+//     (Poisson's run under load gave 18 components, Hausdorff 59.9 %: not repeatable)
+//     PU stages (wall s): pu_octree 0.17, pu_cover 0.66, pu_index 0.02, triangulation
+//     0.74, graph_cut 0.13, marching_tetrahedra 0.15, smoothing 0.02
+//   2M points (PU at level 9): PU+graph-cut 27.0 s wall / 37.4 s CPU, peak RSS 2.0 GB,
+//     1 closed manifold component (genus 0), mean to truth 0.024 %, Hausdorff 3.1 %,
+//     truth to result 0.016 %, area ratio 1.013; stages: pu_octree 2.05, pu_cover 8.79,
+//     pu_index 0.31, triangulation 12.06, graph_cut 2.31, marching_tetrahedra 1.17,
+//     smoothing 0.06.
+//     CGAL Poisson at 2M: not finished after 901 s wall / 819 s CPU, 8.9 GB resident
+//     and growing, when killed at the time limit: > 33x the PU wall time, > 4.4x its memory.
+// Under load 3.3-5.3 (18:41 UTC) the same runs took: 100K PU 4.78 s wall / 3.10 s CPU,
+// Poisson 68.1 s / 45.2 s (661 MB); 2M PU 59.4 s wall / 44.9 s CPU; Poisson 2M was
+// killed at 900 s wall with 5.5 GB resident.
 #ifndef CGAL_EIGEN3_ENABLED
 #define CGAL_EIGEN3_ENABLED 1
 #endif

@@ -324,6 +324,13 @@ struct PUCoverStats {
 /// Supports are computed speculatively in parallel batches and accepted in order,
 /// so the result is exactly that of the sequential loop, whatever the thread count.
 /// `progress` is called on the calling thread between batches with a fraction in [0,1].
+///
+/// Cost (bunny00 with 10 % outliers, 1 thread, 2026-11-23): 2M points at level 9
+/// (12M cells, 609K supports) 18.7 s, of which about 40 % finding the cells inside
+/// each ball (Octree::visit_cells_sparse over the uncovered set) and 35 % the radius
+/// searches and fits; 100K at level 8 (1.1M cells) ~1.4 s. The uncovered set as a
+/// hierarchical bit set (instead of per-64-cell counters) and children classified
+/// before their cell ranges are searched took 2M from 28.2 s to 18.7 s, same supports.
 template <class ProgressFn>
 std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats, ProgressFn&& progress) {
     const Octree& oct = *in.octree;
