@@ -32,7 +32,8 @@ using kintsugi_test::Shape;
 
 namespace {
 
-void check_guarantee(const ks::IndexedMesh& m) {
+/// Checks the output guarantee and returns the topology report it was checked on.
+ks::TopologyReport check_guarantee(const ks::IndexedMesh& m) {
     const auto r = ks::topology_report(m);
     CHECK(r.closed);
     CHECK(r.manifold);
@@ -40,6 +41,7 @@ void check_guarantee(const ks::IndexedMesh& m) {
     CHECK(r.degenerate_faces == 0);
     CHECK(r.isolated_vertices == 0);
     CHECK(ks::signed_volume(m) > 0);  // outward
+    return r;
 }
 
 struct Outcome {
@@ -53,9 +55,8 @@ Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* k
     kintsugi_test::sample_shape(s, 20000, 0.001, 0.10, 42, pts, nrm);
     const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.labeling = labeling});
     REQUIRE(r.status == ks::Status::ok);
-    check_guarantee(r.mesh);
     Outcome o;
-    const auto rep = ks::topology_report(r.mesh);
+    const auto rep = check_guarantee(r.mesh);
     o.components = rep.components;
     o.genus = rep.genus;
     kintsugi_test::distance_to_shape(r.mesh, s, o.mean, o.max);
@@ -291,8 +292,7 @@ TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range 
     REQUIRE(cloud.points.size() == 100000);
     const auto r = ks::reconstruct_pu_graphcut(cloud);
     REQUIRE(r.status == ks::Status::ok);
-    check_guarantee(r.mesh);
-    const auto rep = ks::topology_report(r.mesh);
+    const auto rep = check_guarantee(r.mesh);
     MESSAGE("bunny scans: components " << rep.components << " genus " << rep.genus << " faces " << rep.faces);
     CHECK(rep.components == 1);
     // The shipped subset is 100K of the 327K points: measured genus 1 (one handle
@@ -316,8 +316,7 @@ TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range 
     REQUIRE(all.points.size() == 326936);
     const auto r = ks::reconstruct_pu_graphcut(all);
     REQUIRE(r.status == ks::Status::ok);
-    check_guarantee(r.mesh);
-    const auto rep = ks::topology_report(r.mesh);
+    const auto rep = check_guarantee(r.mesh);
     MESSAGE("bunny scans (all): components " << rep.components << " genus " << rep.genus << " faces " << rep.faces);
     CHECK(rep.components == 1);
     CHECK(rep.genus == 0);
@@ -366,8 +365,7 @@ TEST_CASE("reconstruct_pu_graphcut: real mesh — bunny00 sampled with noise, 3 
     }
     const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn));
     REQUIRE(r.status == ks::Status::ok);
-    check_guarantee(r.mesh);
-    const auto rep = ks::topology_report(r.mesh);
+    const auto rep = check_guarantee(r.mesh);
     const auto d = ks::compare(r.mesh, ref, {.samples = 100000});
     const auto ab = d.relative(d.a_to_b), ba = d.relative(d.b_to_a);
     MESSAGE("bunny00: components " << rep.components << " genus " << rep.genus << " result->truth mean "

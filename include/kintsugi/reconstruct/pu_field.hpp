@@ -81,9 +81,6 @@ struct PUSupport {
     /// Agreement of the normals in the ball, |Σ_j w_i(p_j) n_j| / Σ_j w_i(p_j) in [0, 1]:
     /// near 1 on a surface patch, about 1/sqrt(point_count) among outliers.
     Scalar coherence = 0;
-    /// max_j |g_i(p_j)| / ε over the points in the ball: <= 1 when eq. (6) holds, above
-    /// 1 when r_i sits at its minimum (0.75 x the cell diagonal) and the fit is still off.
-    Scalar fit_error = 0;
 };
 
 class PUField;
@@ -396,7 +393,7 @@ inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3
             data->eval[i] = {s.c, s.r, 1 / s.r, s.r * s.r, s.m, s.m.dot(s.d)};
             data->supports[i] = PUSupport{data->center + s.c * inv_scale, s.r * inv_scale, s.m,
                                           data->center + s.d * inv_scale, s.count, static_cast<int>(s.level),
-                                          s.coherence, s.fit_error};
+                                          s.coherence};
         }
         // Grid cell -> supports whose ball meets the cell: per block of supports, in
         // parallel; then a counting sort by cell in support order (deterministic).

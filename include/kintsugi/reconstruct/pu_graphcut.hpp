@@ -218,12 +218,12 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         }
         const PUTetMesh tm = regular_tet_mesh(sites, radii, progress, 0.0, 1.0);
         const std::size_t nv = tm.vertices.size();
+        // Vertices are numbered by increasing site index, so the surviving supports come
+        // first (vertex v < alive_supports is support tm.site[v]) and the outer layer last.
+        const auto alive_supports = static_cast<std::size_t>(
+            std::lower_bound(tm.site.begin(), tm.site.end(), ns) - tm.site.begin());
         std::vector<std::uint8_t> is_outer(nv, 0);
-        std::size_t alive_supports = 0;
-        for (std::size_t v = 0; v < nv; ++v) {
-            if (tm.site[v] >= ns) is_outer[v] = 1;
-            else ++alive_supports;
-        }
+        std::fill(is_outer.begin() + static_cast<std::ptrdiff_t>(alive_supports), is_outer.end(), 1);
         res.hidden_supports = ns - alive_supports;
         res.outer_vertices = nv - alive_supports;
         res.tetrahedra = tm.tets.size();
@@ -240,10 +240,8 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         // supports (centroids d_j nearest; Hoppe et al. 1992 with a median, so that one
         // trusted-looking outlier support cannot flip a region), which keeps the deep
         // inside and outside anchored by the terminal links of eq. 8-9.
-        std::vector<Vec3> centers;
-        centers.reserve(alive_supports);
-        for (std::size_t v = 0; v < nv; ++v)
-            if (!is_outer[v]) centers.push_back(tm.vertices[v]);
+        const std::vector<Vec3> centers(tm.vertices.begin(),
+                                        tm.vertices.begin() + static_cast<std::ptrdiff_t>(alive_supports));
         const std::vector<Scalar> fc = field.values(centers);
         progress.check();
         auto trusted_support = [&](const PUSupport& s) {
@@ -261,10 +259,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         parallel_for(0, nv, [&](std::size_t v) {
             bool trust = false;
             if (!is_outer[v]) {
-                // position of v among the support vertices
-                const std::size_t c = static_cast<std::size_t>(
-                    std::lower_bound(tm.site.begin(), tm.site.end(), tm.site[v]) - tm.site.begin());
-                f_pu[v] = std::isnan(fc[c]) ? Scalar(0) : fc[c];
+                f_pu[v] = std::isnan(fc[v]) ? Scalar(0) : fc[v];
                 trust = trusted_support(sup[tm.site[v]]);
             }
             if (trust) {

@@ -48,9 +48,6 @@ struct PUSupportData {
     /// |Σ w_j n_j| / Σ w_j over those points, in [0, 1]: 1 when their normals agree
     /// (a surface patch), about 1/sqrt(count) when they point anywhere (outliers).
     Scalar coherence = 0;
-    /// max |g(p_j)| / ε over those points: <= 1 when eq. (6) holds, above 1 when the
-    /// radius sits at its minimum and the fit is still off (noise above ε, outliers).
-    Scalar fit_error = 0;
     std::uint32_t level = 0; ///< level of the octree cell the centre came from
     Index cell = 0;          ///< that cell
     bool fallback = false;   ///< no usable fit: tangent plane of the nearest input point
@@ -192,11 +189,6 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     if (s.valid) {
         out.m = s.m;
         out.d = s.d;
-        const Scalar md = s.m.dot(s.d);
-        Scalar worst = 0;
-        for (std::size_t j = 0; j < s.count; ++j)
-            worst = std::max(worst, std::abs(s.m.dot((*in.points)[idx[j]]) - md));
-        out.fit_error = worst / in.epsilon;
     } else {
         // No point in the ball (far from the data) or normals cancelling out: use the
         // tangent plane of the nearest input point, which has the right sign far away.
