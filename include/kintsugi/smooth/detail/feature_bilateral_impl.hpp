@@ -15,6 +15,11 @@
 
 #include <Eigen/Eigenvalues>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#include <xmmintrin.h>
+#endif
+
 #ifdef KINTSUGI_PARALLEL_TBB
 #include <tbb/parallel_sort.h>
 #endif
@@ -156,26 +161,39 @@ public:
             table_cell_[h] = static_cast<std::uint32_t>(c);
         }
         // The non-empty cells among the 3×3×3 around each cell, in (z, y, x) order: a
-        // query of half side ≤ cell from a point inside a cell visits only those.
+        // query of half side ≤ cell from a point inside a cell visits only those. The
+        // keys are sorted and adding a fixed offset keeps them sorted, so each of the 27
+        // offsets is one forward walk over the keys (no hash look-ups), in chunks.
         const std::size_t nc = keys.size();
         auto& nbr = nbr_scratch_;
         auto& count = count_scratch_;
         nbr.resize(nc);
         count.assign(nc, 0);
-        parallel_for(0, nc, [&](std::size_t c) {
-            const std::array<std::int64_t, 3> g{static_cast<std::int64_t>(keys[c] & mask21_),
-                                                static_cast<std::int64_t>((keys[c] >> 21) & mask21_),
-                                                static_cast<std::int64_t>(keys[c] >> 42)};
-            std::uint8_t k = 0;
-            for (std::int64_t z = g[2] - 1; z <= g[2] + 1; ++z)
-                for (std::int64_t y = g[1] - 1; y <= g[1] + 1; ++y)
-                    for (std::int64_t x = g[0] - 1; x <= g[0] + 1; ++x) {
-                        if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
-                        const std::uint32_t id = find({x, y, z});
-                        if (id != none_) nbr[c][k++] = id;
+        constexpr std::size_t walk = 4096;
+        parallel_for(0, (nc + walk - 1) / walk, [&](std::size_t chunk) {
+            const std::size_t first = chunk * walk, last = std::min(nc, first + walk);
+            for (std::int64_t dz = -1; dz <= 1; ++dz)
+                for (std::int64_t dy = -1; dy <= 1; ++dy)
+                    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+                        const std::int64_t off = dx + dy * (std::int64_t{1} << 21) + dz * (std::int64_t{1} << 42);
+                        auto at = keys.begin();
+                        bool started = false;
+                        for (std::size_t c = first; c < last; ++c) {
+                            const std::int64_t x = static_cast<std::int64_t>(keys[c] & mask21_) + dx,
+                                               y = static_cast<std::int64_t>((keys[c] >> 21) & mask21_) + dy,
+                                               z = static_cast<std::int64_t>(keys[c] >> 42) + dz;
+                            if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
+                            const std::uint64_t want = static_cast<std::uint64_t>(static_cast<std::int64_t>(keys[c]) + off);
+                            if (!started) {
+                                at = std::lower_bound(keys.begin(), keys.end(), want);
+                                started = true;
+                            }
+                            while (at != keys.end() && *at < want) ++at;
+                            if (at != keys.end() && *at == want)
+                                nbr[c][count[c]++] = static_cast<std::uint32_t>(at - keys.begin());
+                        }
                     }
-            count[c] = k;
-        }, 256);
+        }, 1);
         nbr_start_.assign(nc + 1, 0);
         for (std::size_t c = 0; c < nc; ++c) nbr_start_[c + 1] = nbr_start_[c] + count[c];
         nbr_cell_.resize(nbr_start_[nc]);
@@ -188,6 +206,47 @@ public:
     /// centred at c (boundary included).
     template <class F>
     void for_each_in_cube(const Vec3& c, Scalar h, F&& f) const {
+        for_each_cell(c, h, [&](std::uint32_t cidx) {
+            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
+                const Vec3 d = point_[j] - c;
+                if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
+            }
+        });
+    }
+
+    /// The points in the cube of half side h centred at c (boundary included), in the
+    /// same order as for_each_in_cube: indices into `index`, squared distances into
+    /// `dist2` (both overwritten). The cube test is branch-free: which points of a cell
+    /// fall inside is as good as random, and a mispredicted branch per point cost more
+    /// than the test itself.
+    void gather(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {
+        std::size_t n = 0;
+        index.clear();
+        dist2.clear();
+        for_each_cell(c, h, [&](std::uint32_t cidx) {
+            const std::uint32_t first = start_[cidx], last = start_[cidx + 1];
+            if (index.size() < n + (last - first)) {
+                index.resize(2 * (n + (last - first)));
+                dist2.resize(index.size());
+            }
+            std::uint32_t* out_i = index.data();
+            Scalar* out_d = dist2.data();
+            for (std::uint32_t j = first; j < last; ++j) {
+                const Vec3 d = point_[j] - c;
+                out_i[n] = index_[j];
+                out_d[n] = d.squaredNorm();
+                n += static_cast<std::size_t>((std::abs(d.x()) <= h) & (std::abs(d.y()) <= h) & (std::abs(d.z()) <= h));
+            }
+        });
+        index.resize(n);
+        dist2.resize(n);
+    }
+
+private:
+    /// Calls visit(cell) for every non-empty cell that may hold points of the cube of
+    /// half side h centred at c, in (z, y, x) order.
+    template <class Visit>
+    void for_each_cell(const Vec3& c, Scalar h, Visit&& visit) const {
         if (index_.empty()) return;
         const Vec3 a = (c - lo_) * inv_;
         const Scalar r = h * inv_;
@@ -199,18 +258,12 @@ public:
             l[k] = static_cast<std::int64_t>(std::floor(std::max(lo, Scalar(0))));
             u[k] = static_cast<std::int64_t>(std::floor(std::min(hi, top)));
         }
-        auto visit = [&](std::uint32_t cidx) {
-            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
-                const Vec3 d = point_[j] - c;
-                if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
-            }
-        };
         // Usual case: the query point lies in a non-empty cell and h ≤ cell, so the cube
         // is covered by that cell's precomputed neighbours (one hash look-up).
         if (h <= cell_ && a.minCoeff() >= 0 && a.maxCoeff() < static_cast<Scalar>(max_coord_)) {
             const std::uint32_t home = find(coord(c));
             if (home != none_) {
-                for (std::uint32_t k = nbr_start_[home]; k < nbr_start_[home + 1]; ++k) visit(nbr_cell_[k]);
+                for (std::size_t k = nbr_start_[home]; k < nbr_start_[home + 1]; ++k) visit(nbr_cell_[k]);
                 return;
             }
         }
@@ -222,7 +275,6 @@ public:
                 }
     }
 
-private:
     static constexpr std::uint64_t empty_ = ~std::uint64_t{0};
     static constexpr std::uint32_t none_ = ~std::uint32_t{0};
     static constexpr std::uint64_t mask21_ = (std::uint64_t{1} << 21) - 1;
@@ -267,25 +319,28 @@ inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma 
 
 /// Gaussian exp(-x²/(2σ²)) for x² in [0, max2], tabulated (2048 intervals, linear
 /// interpolation: absolute error below 1e-6 for max2 ≤ 40σ²); 0 beyond max2. Used
-/// where the filters evaluate one Gaussian per neighbour per pass.
+/// where the filters evaluate one Gaussian per neighbour per pass; T = float for the
+/// single-precision passes (no conversions in their inner loop).
+template <class T = Scalar>
 class GaussTable {
 public:
-    GaussTable(Scalar sigma, Scalar max2) : scale_(n_ / max2) {
-        for (std::size_t k = 0; k <= n_; ++k) table_[k] = gauss(static_cast<Scalar>(k) / scale_, sigma);
+    GaussTable(Scalar sigma, Scalar max2) : scale_(static_cast<T>(n_ / max2)) {
+        const Scalar scale = n_ / max2;
+        for (std::size_t k = 0; k <= n_; ++k) table_[k] = static_cast<T>(gauss(static_cast<Scalar>(k) / scale, sigma));
         table_[n_ + 1] = table_[n_];
     }
-    Scalar operator()(Scalar x2) const {
-        const Scalar u = x2 * scale_;
-        if (!(u < static_cast<Scalar>(n_))) return u == static_cast<Scalar>(n_) ? table_[n_] : Scalar(0);
-        const std::size_t k = static_cast<std::size_t>(u);
-        const Scalar t = u - static_cast<Scalar>(k);
+    T operator()(T x2) const {
+        const T u = x2 * scale_;
+        if (!(u < static_cast<T>(n_))) return u == static_cast<T>(n_) ? table_[n_] : T(0);
+        const int k = static_cast<int>(u);  // u in [0, n_): no sign or range checks
+        const T t = u - static_cast<T>(k);
         return table_[k] + t * (table_[k + 1] - table_[k]);
     }
 
 private:
     static constexpr std::size_t n_ = 2048;
-    Scalar scale_;
-    std::array<Scalar, n_ + 2> table_{};
+    T scale_;
+    std::array<T, n_ + 2> table_{};
 };
 
 /// Neighbour lists in CSR form (indices and single-precision weights), stored in
@@ -299,12 +354,16 @@ struct Neighbourhoods {
         std::vector<float> weight;
     };
     std::vector<Part> parts;
-    /// Calls f(q, w) for every neighbour q (weight w) of item i.
-    template <class F>
-    void for_each(std::size_t i, F&& f) const {
+    /// The neighbours of item i: indices and weights, `size` of each.
+    struct Span {
+        const std::uint32_t* index;
+        const float* weight;
+        std::size_t size;
+    };
+    [[nodiscard]] Span of(std::size_t i) const {
         const Part& p = parts[i / chunk];
         const std::size_t k = i % chunk;
-        for (std::uint32_t j = p.offset[k]; j < p.offset[k + 1]; ++j) f(p.index[j], p.weight[j]);
+        return {p.index.data() + p.offset[k], p.weight.data() + p.offset[k], p.offset[k + 1] - p.offset[k]};
     }
 };
 
@@ -398,6 +457,33 @@ inline Reach reach_faces(const Barriers& b, const std::vector<Vec3>& centroid, s
     }
     return {&mark, stamp};
 }
+/// The range weight of filter 3, g = exp(−a·Y²) for Y² ≤ 1 and 0 beyond (a neighbour
+/// across a sharp edge), for a·Y² ≤ 1.4 (σ_mg ≥ 0.6): exp(x) = p(x/8)⁸ with p the
+/// degree-5 Taylor polynomial, relative error below 1e-6, no branch and no table, in
+/// the same arithmetic for one value and for four (SSE2).
+inline float range_weight(float Y2, float a) {
+    const float x = -a * Y2 * 0.125f;
+    float e = 1 + x * (1 + x * (0.5f + x * (1.f / 6 + x * (1.f / 24 + x * (1.f / 120)))));
+    e *= e;
+    e *= e;
+    e *= e;
+    return Y2 <= 1.f ? e : 0.f;
+}
+#if defined(__SSE2__)
+inline __m128 range_weight(__m128 Y2, float a) {
+    const __m128 x = _mm_mul_ps(Y2, _mm_set1_ps(-a * 0.125f));
+    __m128 e = _mm_add_ps(_mm_set1_ps(1.f / 24), _mm_mul_ps(x, _mm_set1_ps(1.f / 120)));
+    e = _mm_add_ps(_mm_set1_ps(1.f / 6), _mm_mul_ps(x, e));
+    e = _mm_add_ps(_mm_set1_ps(0.5f), _mm_mul_ps(x, e));
+    e = _mm_add_ps(_mm_set1_ps(1.f), _mm_mul_ps(x, e));
+    e = _mm_add_ps(_mm_set1_ps(1.f), _mm_mul_ps(x, e));
+    e = _mm_mul_ps(e, e);
+    e = _mm_mul_ps(e, e);
+    e = _mm_mul_ps(e, e);
+    return _mm_and_ps(e, _mm_cmple_ps(Y2, _mm_set1_ps(1.f)));
+}
+#endif
+
 /// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
 /// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
 /// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°).
@@ -415,20 +501,23 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
     const double q2 = from + (to - from) * 0.3;
     Neighbourhoods local;
     Neighbourhoods& nb = lists ? *lists : local;
-    const GaussTable spatial(s_mf, 3 * h * h);
+    const GaussTable<> spatial(s_mf, 3 * h * h);
     build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& push) {
         if (g.area[t] == 0) return;
+        thread_local std::vector<std::uint32_t> found;
+        thread_local std::vector<Scalar> dist2;
+        grid.gather(g.centroid[t], h, found, dist2);
         if (barriers && (*near)[t]) {
             const Index seed[1] = {t};
             const Reach reached = reach_faces(*barriers, g.centroid, seed, g.centroid[t], h);
-            grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) {
-                if (reached(q)) push(q, g.area[q] * spatial(d2));
-            });
+            for (std::size_t k = 0; k < found.size(); ++k)
+                if (reached(found[k])) push(found[k], g.area[found[k]] * spatial(dist2[k]));
             return;
         }
-        grid.for_each_in_cube(g.centroid[t], h, [&](Index q, Scalar d2) { push(q, g.area[q] * spatial(d2)); });
+        for (std::size_t k = 0; k < found.size(); ++k) push(found[k], g.area[found[k]] * spatial(dist2[k]));
     });
-    const GaussTable range(s_mg, 1);
+    // g(Y) = exp(−Y²/(2σ_mg²)), 0 for Y > 1, evaluated by range_weight (below).
+    const float a_mg = static_cast<float>(1 / (2 * s_mg * s_mg));
     // The passes run in single precision (normals as padded float4: half the memory
     // traffic of the random neighbour reads); the result is renormalised in double.
     using N4 = Eigen::Vector4f;
@@ -439,13 +528,49 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
         const double a1 = q2 + (to - q2) * static_cast<double>(k + 1) / static_cast<double>(iterations);
         blocked_for(progress, nf, a0, a1, [&](std::size_t t) {
             const N4 nt = cur[t];
-            N4 acc = N4::Zero();
-            nb.for_each(t, [&](std::uint32_t q, float w) {
-                const N4& nq = cur[q];
-                const float Y2 = (nt - nq).squaredNorm();
-                if (Y2 > 1.f) return;  // across a sharp edge: g = 0
-                acc += (w * static_cast<float>(range(Y2))) * nq;
-            });
+            // Plain loops with local accumulators (through a lambda capturing them by
+            // reference they went through memory on every neighbour), four neighbours
+            // at a time where SSE2 is available, and no branch on the cut-off (whether
+            // a noisy neighbour's normal is beyond it is unpredictable).
+            const float* normal = cur[0].data();
+            const Neighbourhoods::Span nbrs = nb.of(t);
+            float ax = 0, ay = 0, az = 0;
+            std::size_t j = 0;
+#if defined(__SSE2__)
+            {
+                const __m128 tx = _mm_set1_ps(nt.x()), ty = _mm_set1_ps(nt.y()), tz = _mm_set1_ps(nt.z());
+                __m128 sx = _mm_setzero_ps(), sy = _mm_setzero_ps(), sz = _mm_setzero_ps();
+                for (; j + 4 <= nbrs.size; j += 4) {
+                    __m128 n0 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j]});
+                    __m128 n1 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 1]});
+                    __m128 n2 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 2]});
+                    __m128 n3 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 3]});
+                    _MM_TRANSPOSE4_PS(n0, n1, n2, n3);  // n0, n1, n2: x, y, z of the four
+                    const __m128 dx = _mm_sub_ps(tx, n0), dy = _mm_sub_ps(ty, n1), dz = _mm_sub_ps(tz, n2);
+                    const __m128 Y2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+                    const __m128 w = _mm_mul_ps(_mm_loadu_ps(nbrs.weight + j), range_weight(Y2, a_mg));
+                    sx = _mm_add_ps(sx, _mm_mul_ps(w, n0));
+                    sy = _mm_add_ps(sy, _mm_mul_ps(w, n1));
+                    sz = _mm_add_ps(sz, _mm_mul_ps(w, n2));
+                }
+                alignas(16) float lane[3][4];
+                _mm_store_ps(lane[0], sx);
+                _mm_store_ps(lane[1], sy);
+                _mm_store_ps(lane[2], sz);
+                ax = (lane[0][0] + lane[0][1]) + (lane[0][2] + lane[0][3]);
+                ay = (lane[1][0] + lane[1][1]) + (lane[1][2] + lane[1][3]);
+                az = (lane[2][0] + lane[2][1]) + (lane[2][2] + lane[2][3]);
+            }
+#endif
+            for (; j < nbrs.size; ++j) {
+                const float* nq = normal + 4 * std::size_t{nbrs.index[j]};
+                const float dx = nt.x() - nq[0], dy = nt.y() - nq[1], dz = nt.z() - nq[2];
+                const float w = nbrs.weight[j] * range_weight(dx * dx + dy * dy + dz * dz, a_mg);
+                ax += w * nq[0];
+                ay += w * nq[1];
+                az += w * nq[2];
+            }
+            const N4 acc(ax, ay, az, 0.f);
             const float n = acc.norm();
             nxt[t] = n > 0 && std::isfinite(n) ? N4(acc / n) : nt;
         });
@@ -653,7 +778,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     const Scalar s_f = (st.vertex_c > 0 ? st.vertex_c : st.c) * L, s_g = st.d * L;
     const Scalar h = s_f;  // the face cube has side 2σ_f
     // f over the whole cube; g tabulated to 8σ_g (beyond, e^-32 < 1e-13: 0).
-    const GaussTable spatial(s_f, 3 * h * h), range(s_g, 64 * s_g * s_g);
+    const GaussTable<> spatial(s_f, 3 * h * h), range(s_g, 64 * s_g * s_g);
     const double mid = from + (to - from) / 2;
 
     // 3) normals, normal_iterations times.
@@ -666,29 +791,35 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     std::vector<Vec3> out(nv);
     const std::size_t vit = std::max<std::size_t>(st.vertex_iterations, 1);
     for (std::size_t k = 0; k < vit; ++k) {
-        if (k > 0) {
-            compute_face_geometry(V, F, g);
-            grid.build(g.centroid, st.c * L, &g.area);
-        }
+        // The grid of filter 3 serves the first pass when its cells fit this cube (cells
+        // much larger than the cube would visit up to 9x too many faces).
+        if (k > 0) compute_face_geometry(V, F, g);
+        if (k > 0 || s_f != st.c * L) grid.build(g.centroid, s_f, &g.area);
         blocked_for(progress, nv, mid + (to - mid) * static_cast<double>(k) / static_cast<double>(vit),
                     mid + (to - mid) * static_cast<double>(k + 1) / static_cast<double>(vit), [&](std::size_t i) {
             const Vec3& p = V[i];
             out[i] = p;
             if (fixed[i] || !has_face[i]) return;
-            Vec3 acc = Vec3::Zero();
-            Scalar kr = 0;
             Reach reached{nullptr, 0};
             if (barriers && near_vertex[i]) reached = reach_faces(*barriers, g.centroid, barriers->topo->vertex_faces(i), p, h);
-            grid.for_each_in_cube(p, h, [&](Index q, Scalar d2) {
-                if (reached.marks && !reached(q)) return;
+            thread_local std::vector<std::uint32_t> found;
+            thread_local std::vector<Scalar> dist2;
+            grid.gather(p, h, found, dist2);
+            // Plain loop, local accumulators (kept in registers; see filter_normals).
+            Scalar ax = 0, ay = 0, az = 0, kr = 0;
+            for (std::size_t k = 0; k < found.size(); ++k) {
+                const std::uint32_t q = found[k];
+                if (reached.marks && !reached(q)) continue;
                 const Vec3& n = nf_[q];
                 const Scalar off = (p - g.centroid[q]).dot(n);
                 const Vec3 proj = p - off * n;
-                const Scalar w = g.area[q] * spatial(d2) * range(off * off);  // f·g
-                acc += w * proj;
+                const Scalar w = g.area[q] * spatial(dist2[k]) * range(off * off);  // f·g
+                ax += w * proj.x();
+                ay += w * proj.y();
+                az += w * proj.z();
                 kr += w;
-            });
-            if (kr > 0 && std::isfinite(kr)) out[i] = acc / kr;
+            }
+            if (kr > 0 && std::isfinite(kr)) out[i] = Vec3(ax, ay, az) / kr;
         });
         V.swap(out);
     }
