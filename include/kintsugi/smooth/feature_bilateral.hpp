@@ -338,8 +338,13 @@ inline SpatialOrder spatial_order(const IndexedMesh& m) {
         const Face& t = m.faces[f];
         fk[f] = {morton((m.vertices[t[0]] + m.vertices[t[1]] + m.vertices[t[2]]) / 3), f};
     }, 4096);
+#ifdef KINTSUGI_PARALLEL_TBB
+    tbb::parallel_sort(vk.begin(), vk.end());  // unique (key, index) pairs: one result
+    tbb::parallel_sort(fk.begin(), fk.end());
+#else
     std::sort(vk.begin(), vk.end());
     std::sort(fk.begin(), fk.end());
+#endif
     SpatialOrder out;
     out.order.resize(nv);
     out.mesh.vertices.resize(nv);

@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -124,30 +125,39 @@ public:
         const Scalar extent = (hi - lo_).maxCoeff();
         cell_ = std::max({cell, extent / Scalar((1 << 20) - 2), std::numeric_limits<Scalar>::min()});
         inv_ = 1 / cell_;
+        // (cell key, index) of every kept point; left-out points get the key empty_
+        // (above every real key: 63 bits) and are cut off after sorting.
         auto& order = order_;
-        order.clear();
-        order.reserve(n);
-        for (std::size_t i = 0; i < n; ++i)
-            if (!keep_if_positive || (*keep_if_positive)[i] > 0)
-                order.emplace_back(key(coord(pts[i])), static_cast<std::uint32_t>(i));
+        order.resize(n);
+        parallel_for(0, n, [&](std::size_t i) {
+            const bool keep = !keep_if_positive || (*keep_if_positive)[i] > 0;
+            order[i] = {keep ? key(coord(pts[i])) : empty_, static_cast<std::uint32_t>(i)};
+        }, 4096);
 #ifdef KINTSUGI_PARALLEL_TBB
         tbb::parallel_sort(order.begin(), order.end());  // unique (key, index) pairs: one result
 #else
         std::sort(order.begin(), order.end());
 #endif
+        order.resize(static_cast<std::size_t>(
+            std::lower_bound(order.begin(), order.end(), std::pair<std::uint64_t, std::uint32_t>{empty_, 0}) -
+            order.begin()));
         index_.resize(order.size());
         point_.resize(order.size());
+        local_.resize(order.size());
+        generation_ = next_generation();
+        parallel_for(0, order.size(), [&](std::size_t k) {
+            index_[k] = order[k].second;
+            point_[k] = pts[order[k].second];
+            local_[k] = (point_[k] - lo_).cast<float>();
+        }, 4096);
         start_.clear();
         auto& keys = keys_;
         keys.clear();
-        for (std::size_t k = 0; k < order.size(); ++k) {
+        for (std::size_t k = 0; k < order.size(); ++k)
             if (k == 0 || order[k].first != order[k - 1].first) {
                 keys.push_back(order[k].first);
                 start_.push_back(static_cast<std::uint32_t>(k));
             }
-            index_[k] = order[k].second;
-            point_[k] = pts[order[k].second];
-        }
         start_.push_back(static_cast<std::uint32_t>(order.size()));
         std::size_t cap = 16;
         while (cap < 2 * keys.size()) cap *= 2;
@@ -216,33 +226,122 @@ public:
 
     /// The points in the cube of half side h centred at c (boundary included), in the
     /// same order as for_each_in_cube: indices into `index`, squared distances into
-    /// `dist2` (both overwritten). The cube test is branch-free: which points of a cell
-    /// fall inside is as good as random, and a mispredicted branch per point cost more
-    /// than the test itself.
+    /// `dist2` (both overwritten). The cube test runs in single precision relative to
+    /// the grid's corner, four points at a time (SSE2), over the points of the query's
+    /// 3×3×3 cells copied once into a per-thread buffer: consecutive queries from the
+    /// same cell (the usual case in spatial order) reuse it. No branch depends on
+    /// which points fall inside (that is as good as random, and mispredicted branches
+    /// cost more than the test).
     void gather(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {
-        std::size_t n = 0;
         index.clear();
         dist2.clear();
-        for_each_cell(c, h, [&](std::uint32_t cidx) {
-            const std::uint32_t first = start_[cidx], last = start_[cidx + 1];
-            if (index.size() < n + (last - first)) {
-                index.resize(2 * (n + (last - first)));
-                dist2.resize(index.size());
+        if (index_.empty()) return;
+        const Vec3 a = (c - lo_) * inv_;
+        if (!(h <= cell_ && a.minCoeff() >= 0 && a.maxCoeff() < static_cast<Scalar>(max_coord_))) {
+            // a cube larger than the cells or a query outside the grid: the general path
+            for_each_in_cube(c, h, [&](Index q, Scalar d2) {
+                index.push_back(static_cast<std::uint32_t>(q));
+                dist2.push_back(d2);
+            });
+            return;
+        }
+        // A few cells' buffers per thread (direct-mapped by cell): the spatial order of
+        // the queries crosses cell borders often, and returns.
+        thread_local std::array<Candidates, 32> buffers;
+        const std::uint64_t home = key(coord(c));  // the query's cell, empty or not
+        Candidates& cand = buffers[slot(home) % buffers.size()];
+        if (cand.generation != generation_ || cand.cell != home) fill(cand, home);
+        const std::size_t m = cand.x.size();
+        index.resize(m);
+        dist2.resize(m);
+        std::uint32_t* out_i = index.data();
+        Scalar* out_d = dist2.data();
+        std::size_t n = 0;
+        const Eigen::Vector3f q = (c - lo_).cast<float>();
+        const float hf = static_cast<float>(h);
+#if defined(__SSE2__)
+        const __m128 qx = _mm_set1_ps(q.x()), qy = _mm_set1_ps(q.y()), qz = _mm_set1_ps(q.z()), vh = _mm_set1_ps(hf);
+        const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+        alignas(16) float d2[4];
+        for (std::size_t k = 0; k < m; k += 4) {  // m is a multiple of 4 (padding far away)
+            const __m128 dx = _mm_sub_ps(_mm_load_ps(cand.x.data() + k), qx);
+            const __m128 dy = _mm_sub_ps(_mm_load_ps(cand.y.data() + k), qy);
+            const __m128 dz = _mm_sub_ps(_mm_load_ps(cand.z.data() + k), qz);
+            const __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_and_ps(dx, abs_mask), vh),
+                                                    _mm_cmple_ps(_mm_and_ps(dy, abs_mask), vh)),
+                                         _mm_cmple_ps(_mm_and_ps(dz, abs_mask), vh));
+            const int bits = _mm_movemask_ps(in);
+            _mm_store_ps(d2, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz)));
+            for (int b = 0; b < 4; ++b) {
+                out_i[n] = cand.index[k + b];
+                out_d[n] = d2[b];
+                n += static_cast<std::size_t>((bits >> b) & 1);
             }
-            std::uint32_t* out_i = index.data();
-            Scalar* out_d = dist2.data();
-            for (std::uint32_t j = first; j < last; ++j) {
-                const Vec3 d = point_[j] - c;
-                out_i[n] = index_[j];
-                out_d[n] = d.squaredNorm();
-                n += static_cast<std::size_t>((std::abs(d.x()) <= h) & (std::abs(d.y()) <= h) & (std::abs(d.z()) <= h));
-            }
-        });
+        }
+#else
+        for (std::size_t k = 0; k < m; ++k) {
+            const float dx = cand.x[k] - q.x(), dy = cand.y[k] - q.y(), dz = cand.z[k] - q.z();
+            out_i[n] = cand.index[k];
+            out_d[n] = dx * dx + dy * dy + dz * dz;
+            n += static_cast<std::size_t>((std::abs(dx) <= hf) & (std::abs(dy) <= hf) & (std::abs(dz) <= hf));
+        }
+#endif
         index.resize(n);
         dist2.resize(n);
     }
 
 private:
+    /// The points of one cell's 3×3×3 neighbourhood as single-precision columns,
+    /// padded to a multiple of 4 with points at infinity (never inside a cube).
+    struct Candidates {
+        std::uint64_t generation = 0;
+        std::uint64_t cell = 0;  // key of the query cell
+        std::vector<float, Eigen::aligned_allocator<float>> x, y, z;
+        std::vector<std::uint32_t> index;
+    };
+    void fill(Candidates& cand, std::uint64_t home) const {
+        cand.generation = generation_;
+        cand.cell = home;
+        // The non-empty cells around: precomputed for a non-empty home cell, else found
+        // by look-ups (a vertex's cell may hold no face centroid).
+        std::array<std::uint32_t, 27> around{};
+        std::size_t cells = 0;
+        if (const std::uint32_t id = find(home); id != none_) {
+            for (std::size_t k = nbr_start_[id]; k < nbr_start_[id + 1]; ++k) around[cells++] = nbr_cell_[k];
+        } else {
+            const std::int64_t x0 = static_cast<std::int64_t>(home & mask21_),
+                               y0 = static_cast<std::int64_t>((home >> 21) & mask21_),
+                               z0 = static_cast<std::int64_t>(home >> 42);
+            for (std::int64_t z = z0 - 1; z <= z0 + 1; ++z)
+                for (std::int64_t y = y0 - 1; y <= y0 + 1; ++y)
+                    for (std::int64_t x = x0 - 1; x <= x0 + 1; ++x) {
+                        if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
+                        if (const std::uint32_t cidx = find({x, y, z}); cidx != none_) around[cells++] = cidx;
+                    }
+        }
+        std::size_t m = 0;
+        for (std::size_t k = 0; k < cells; ++k) m += start_[around[k] + 1] - start_[around[k]];
+        const std::size_t padded = (m + 3) / 4 * 4;
+        cand.x.resize(padded);
+        cand.y.resize(padded);
+        cand.z.resize(padded);
+        cand.index.resize(padded);
+        float *x = cand.x.data(), *y = cand.y.data(), *z = cand.z.data();
+        std::uint32_t* id = cand.index.data();
+        std::size_t n = 0;
+        for (std::size_t k = 0; k < cells; ++k)
+            for (std::uint32_t j = start_[around[k]]; j < start_[around[k] + 1]; ++j, ++n) {
+                x[n] = local_[j].x();
+                y[n] = local_[j].y();
+                z[n] = local_[j].z();
+                id[n] = index_[j];
+            }
+        for (; n < padded; ++n) {
+            x[n] = y[n] = z[n] = std::numeric_limits<float>::infinity();
+            id[n] = 0;
+        }
+    }
+
     /// Calls visit(cell) for every non-empty cell that may hold points of the cube of
     /// half side h centred at c, in (z, y, x) order.
     template <class Visit>
@@ -278,8 +377,8 @@ private:
     static constexpr std::uint64_t empty_ = ~std::uint64_t{0};
     static constexpr std::uint32_t none_ = ~std::uint32_t{0};
     static constexpr std::uint64_t mask21_ = (std::uint64_t{1} << 21) - 1;
-    std::uint32_t find(const std::array<std::int64_t, 3>& g) const {
-        const std::uint64_t k = key(g);
+    std::uint32_t find(const std::array<std::int64_t, 3>& g) const { return find(key(g)); }
+    std::uint32_t find(std::uint64_t k) const {
         for (std::size_t s = slot(k);; s = (s + 1) & mask_) {
             if (table_key_[s] == k) return table_cell_[s];
             if (table_key_[s] == empty_) return none_;
@@ -305,6 +404,12 @@ private:
     std::vector<std::uint32_t> index_, start_, table_cell_, nbr_cell_;
     std::vector<std::size_t> nbr_start_;
     std::vector<Vec3> point_;
+    std::vector<Eigen::Vector3f> local_;  // point_ − lo_ in single precision (gather)
+    std::uint64_t generation_ = 0;        // unique per build (gather's per-thread cache)
+    static std::uint64_t next_generation() {
+        static std::atomic<std::uint64_t> counter{0};
+        return ++counter;
+    }
     std::vector<std::uint64_t> table_key_;
     std::size_t mask_ = 0;
     // Scratch of build(), kept so that rebuilding a grid allocates nothing new.
@@ -367,9 +472,9 @@ struct Neighbourhoods {
     }
 };
 
-/// Builds the lists: gather(i, push) calls push(q, w) for each neighbour q of i, in an
-/// order that depends on i alone. Chunks are filled in parallel; the lists do not
-/// depend on the thread count.
+/// Builds the lists: gather(i, append) calls append(q, w, count) with the neighbours
+/// q[0..count) of i and their weights, in an order that depends on i alone. Chunks
+/// are filled in parallel; the lists do not depend on the thread count.
 template <class Gather>
 void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress, double from, double to,
                           Gather&& gather) {
@@ -385,9 +490,9 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
             part.index.clear();
             part.weight.clear();
             for (std::size_t i = first; i < last; ++i) {
-                gather(i, [&](Index q, Scalar w) {
-                    part.index.push_back(static_cast<std::uint32_t>(q));
-                    part.weight.push_back(static_cast<float>(w));
+                gather(i, [&](const std::uint32_t* q, const float* w, std::size_t count) {
+                    part.index.insert(part.index.end(), q, q + count);
+                    part.weight.insert(part.weight.end(), w, w + count);
                 });
                 part.offset[i - first + 1] = static_cast<std::uint32_t>(part.index.size());
             }
@@ -502,19 +607,26 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
     Neighbourhoods local;
     Neighbourhoods& nb = lists ? *lists : local;
     const GaussTable<> spatial(s_mf, 3 * h * h);
-    build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& push) {
+    build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& append) {
         if (g.area[t] == 0) return;
         thread_local std::vector<std::uint32_t> found;
         thread_local std::vector<Scalar> dist2;
+        thread_local std::vector<float> weight;
         grid.gather(g.centroid[t], h, found, dist2);
-        if (barriers && (*near)[t]) {
+        std::size_t n = found.size();
+        weight.resize(n);
+        if (barriers && (*near)[t]) {  // keep the faces reached without crossing a sharp edge
             const Index seed[1] = {t};
             const Reach reached = reach_faces(*barriers, g.centroid, seed, g.centroid[t], h);
+            n = 0;
             for (std::size_t k = 0; k < found.size(); ++k)
-                if (reached(found[k])) push(found[k], g.area[found[k]] * spatial(dist2[k]));
-            return;
+                if (reached(found[k])) {
+                    found[n] = found[k];
+                    dist2[n++] = dist2[k];
+                }
         }
-        for (std::size_t k = 0; k < found.size(); ++k) push(found[k], g.area[found[k]] * spatial(dist2[k]));
+        for (std::size_t k = 0; k < n; ++k) weight[k] = static_cast<float>(g.area[found[k]] * spatial(dist2[k]));
+        append(found.data(), weight.data(), n);
     });
     // g(Y) = exp(−Y²/(2σ_mg²)), 0 for Y > 1, evaluated by range_weight (below).
     const float a_mg = static_cast<float>(1 / (2 * s_mg * s_mg));
@@ -791,10 +903,12 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     std::vector<Vec3> out(nv);
     const std::size_t vit = std::max<std::size_t>(st.vertex_iterations, 1);
     for (std::size_t k = 0; k < vit; ++k) {
-        // The grid of filter 3 serves the first pass when its cells fit this cube (cells
-        // much larger than the cube would visit up to 9x too many faces).
-        if (k > 0) compute_face_geometry(V, F, g);
-        if (k > 0 || s_f != st.c * L) grid.build(g.centroid, s_f, &g.area);
+        // The grid of filter 3 serves the first pass (with larger cells than this cube
+        // the gather tests more points, which costs less than a new grid).
+        if (k > 0) {
+            compute_face_geometry(V, F, g);
+            grid.build(g.centroid, s_f, &g.area);
+        }
         blocked_for(progress, nv, mid + (to - mid) * static_cast<double>(k) / static_cast<double>(vit),
                     mid + (to - mid) * static_cast<double>(k + 1) / static_cast<double>(vit), [&](std::size_t i) {
             const Vec3& p = V[i];
