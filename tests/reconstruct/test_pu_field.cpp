@@ -208,6 +208,57 @@ TEST_CASE("PUField: sphere — value, sign, gradient, cover") {
     CHECK(f.bounding_box().extent().maxCoeff() == doctest::Approx(2.0).epsilon(0.01));
 }
 
+TEST_CASE("PUField: reweighted — factors scale the supports' weights") {
+    const Sphere s;
+    std::mt19937_64 rng(3);
+    V pts, nrm;
+    s.sample(5000, rng, pts, nrm);
+    const auto res = ks::PUField::build(ks::with_normals(pts, nrm), {.max_level = 6});
+    REQUIRE(res.status == ks::Status::ok);
+    const ks::PUField& f = res.field;
+    const std::size_t ns = f.supports().size();
+    std::vector<ks::Vec3> xs;
+    for (std::size_t q = 0; q < pts.size(); q += 9) xs.push_back(pts[q] * 0.97);
+    // All factors 1: the same field, bit for bit.
+    const ks::PUField same = f.reweighted(std::vector<double>(ns, 1.0));
+    const auto v0 = f.values(xs), v1 = same.values(xs);
+    CHECK(std::memcmp(v0.data(), v1.data(), v0.size() * sizeof(double)) == 0);
+    // One support alone (the others 0): its own linear function g_i inside its ball,
+    // NaN where no other support is left.
+    const std::size_t k = ns / 2;
+    std::vector<double> one(ns, 0.0);
+    one[k] = 1;
+    const ks::PUField alone = f.reweighted(one);
+    const ks::PUSupport& sk = f.supports()[k];
+    const ks::Vec3 x = sk.center + 0.3 * sk.radius * ks::Vec3(1, 0, 0);
+    CHECK(alone(x) == doctest::Approx(sk.normal.dot(x - sk.origin)).epsilon(1e-9));
+    CHECK(std::isnan(alone(sk.center + 1.01 * sk.radius * ks::Vec3(0, 1, 0))));
+    // A tiny factor counts only where nothing else covers x.
+    std::vector<double> tiny(ns, 1.0);
+    tiny[k] = 1e-9;
+    const ks::PUField t = f.reweighted(tiny);
+    const ks::Vec3 c = sk.center;
+    double without = 0, wsum = 0;
+    for (std::size_t i = 0; i < ns; ++i) {
+        const auto& si = f.supports()[i];
+        const double d = (c - si.center).norm();
+        if (i == k || d >= si.radius) continue;
+        const double tt = 1.5 * d / si.radius;
+        const double w = tt < 0.5 ? 0.75 - tt * tt : 0.5 * (1.5 - tt) * (1.5 - tt);
+        without += w * si.normal.dot(c - si.origin);
+        wsum += w;
+    }
+    if (wsum > 0) CHECK(t(c) == doctest::Approx(without / wsum).epsilon(1e-6));
+    CHECK(f.supports().size() == t.supports().size());  // shares the supports
+    CHECK_THROWS_WITH_AS((void)f.reweighted(std::vector<double>(ns + 1, 1.0)), doctest::Contains("factors"),
+                         ks::invalid_input);
+    std::vector<double> neg(ns, 1.0);
+    neg[0] = -1;
+    CHECK_THROWS_WITH_AS((void)f.reweighted(neg), doctest::Contains(">= 0"), ks::invalid_input);
+    neg[0] = std::numeric_limits<double>::quiet_NaN();
+    CHECK_THROWS_AS((void)f.reweighted(neg), ks::invalid_input);
+}
+
 TEST_CASE("PUField: torus — value and sign (genus 1)") {
     const Torus t;
     std::mt19937_64 rng(2);

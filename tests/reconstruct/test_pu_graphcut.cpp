@@ -232,6 +232,10 @@ TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the pr
     expect(pts, nrm, {.k = -2}, "k = ");
     expect(pts, nrm, {.min_support_coherence = 1.5}, "min_support_coherence");
     expect(pts, nrm, {.triangulation_weight_scale = -0.5}, "triangulation_weight_scale");
+    expect(pts, nrm, {.untrusted_weight = -0.1}, "untrusted_weight");
+    expect(pts, nrm, {.untrusted_weight = 2}, "untrusted_weight");
+    expect(pts, nrm, {.fill_radius_fraction = -1}, "fill_radius_fraction");
+    expect(pts, nrm, {.fill_radius_fraction = std::numeric_limits<double>::quiet_NaN()}, "fill_radius_fraction");
     expect(pts, nrm, {.max_level = 0}, "max_level");
     expect(pts, nrm, {.max_level = 13}, "max_level");
     expect(pts, nrm, {.epsilon = 0}, "epsilon");
@@ -369,16 +373,39 @@ TEST_CASE("reconstruct_pu_graphcut: real mesh — bunny00 sampled with noise, 3 
     const auto d = ks::compare(r.mesh, ref, {.samples = 100000});
     const auto ab = d.relative(d.a_to_b), ba = d.relative(d.b_to_a);
     MESSAGE("bunny00: components " << rep.components << " genus " << rep.genus << " result->truth mean "
-                                   << ab.mean << " hausdorff " << ab.hausdorff << " truth->result mean " << ba.mean);
+                                   << ab.mean << " hausdorff " << ab.hausdorff << " truth->result mean " << ba.mean
+                                   << " hausdorff " << ba.hausdorff << " filled " << r.filled_vertices);
     // Acceptance: one closed manifold component, result->truth mean <= 0.05 % and
     // Hausdorff <= 1 % of the diagonal. Measured on this input: 1 component, genus 0,
-    // mean 0.051 % / 0.041 % (result->truth / truth->result), Hausdorff 3.7 %: one
-    // bulge of outliers beyond an ear tip, where the tangent planes of the plate's two
-    // sides disagree and neither sign is trusted. On three other seeds of the same
-    // construction: mean 0.037-0.041 %, Hausdorff 0.99-1.8 %.
+    // mean 0.036 % / 0.036 % (result->truth / truth->result), Hausdorff 0.67 % / 0.65 %.
+    // On seeds 1-6 of the same construction: mean 0.034-0.036 %, result->truth
+    // Hausdorff 0.59-0.95 %. Before the untrusted_weight and fill_radius_fraction
+    // defaults: mean 0.051 %, Hausdorff 3.7 % here (a bulge of outliers beyond an ear
+    // tip that a hole removed) and 0.94-2.8 % on the other seeds (hole fills following
+    // the linear extrapolation of the rim planes; spikes where outlier supports bent
+    // the field). truth->result stays up to 1.6 % on seeds 4 and 6, where a hole takes
+    // an ear's tip: no data say how far the tip reached, and the fill closes it short.
     CHECK(rep.components == 1);
-    CHECK(ab.mean <= 0.0006);
+    CHECK(ab.mean <= 0.0005);
     CHECK(ba.mean <= 0.0005);
-    CHECK(ab.hausdorff <= 0.045);
+    CHECK(ab.hausdorff <= 0.01);
     CHECK(ba.hausdorff <= 0.02);
+    CHECK(r.filled_vertices > 0);
+    // Each of the two is needed: without the fill, or with the paper's field, the hole
+    // fills leave the 1 % bound (measured 2.5 % and 1.1 %).
+    ks::PUGraphcutParams no_fill;
+    no_fill.fill_radius_fraction = 0;
+    const auto rn = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn), no_fill);
+    REQUIRE(rn.status == ks::Status::ok);
+    CHECK(rn.filled_vertices == 0);
+    const auto dn = ks::compare(rn.mesh, ref, {.samples = 100000});
+    MESSAGE("bunny00 without the fill: hausdorff " << dn.relative(dn.a_to_b).hausdorff);
+    CHECK(dn.relative(dn.a_to_b).hausdorff > 0.01);
+    ks::PUGraphcutParams paper_field;
+    paper_field.untrusted_weight = 1;
+    const auto rp = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn), paper_field);
+    REQUIRE(rp.status == ks::Status::ok);
+    const auto dp = ks::compare(rp.mesh, ref, {.samples = 100000});
+    MESSAGE("bunny00 with the paper's field: hausdorff " << dp.relative(dp.a_to_b).hausdorff);
+    CHECK(dp.relative(dp.a_to_b).hausdorff > 0.01);
 }

@@ -154,6 +154,24 @@ public:
     [[nodiscard]] static PUFieldResult build_from(std::vector<Vec3> points, std::vector<Vec3> normals,
                                                   const PUFieldParams& params = {});
 
+    /// @brief The same supports with the weight w_i of support i multiplied by
+    /// factors[i] >= 0 (eq. 1 becomes Σ a_i w_i g_i / Σ a_i w_i): a support with a
+    /// small factor only counts where no full-weight support covers x; 0 removes it
+    /// (NaN where only removed supports cover x). Shares the supports with this field.
+    /// @throws invalid_input when factors.size() != supports().size() or a factor is
+    ///         negative or not finite.
+    [[nodiscard]] PUField reweighted(std::vector<Scalar> factors) const {
+        if (factors.size() != supports().size())
+            throw invalid_input("kintsugi::PUField::reweighted: " + std::to_string(factors.size()) +
+                                " factors for " + std::to_string(supports().size()) + " supports");
+        for (const Scalar a : factors)
+            if (!(a >= 0) || !std::isfinite(a))
+                throw invalid_input("kintsugi::PUField::reweighted: factors must be finite and >= 0");
+        PUField out = *this;
+        out.factors_ = std::make_shared<const std::vector<Scalar>>(std::move(factors));
+        return out;
+    }
+
     /// Whether the field holds supports (false when default-constructed or cancelled).
     [[nodiscard]] bool empty() const { return !data_ || data_->eval.empty(); }
 
@@ -241,12 +259,14 @@ private:
             if (d2 >= s.r2) continue;
             const Scalar d = std::sqrt(d2);
             const Scalar t = Scalar(1.5) * d * s.inv_r;
-            const Scalar w = detail::pu_b2(t);
+            const Scalar a = factors_ ? (*factors_)[ids[k]] : Scalar(1);
+            if (a == 0) continue;
+            const Scalar w = a * detail::pu_b2(t);
             const Scalar g = s.m.dot(u) - s.md;
             W += w;
             F += w * g;
             if (want_grad) {
-                const Vec3 gw = d > 0 ? Vec3(detail::pu_b2_derivative(t) * Scalar(1.5) * s.inv_r / d * diff)
+                const Vec3 gw = d > 0 ? Vec3(a * detail::pu_b2_derivative(t) * Scalar(1.5) * s.inv_r / d * diff)
                                       : Vec3::Zero();
                 dW += gw;
                 dF += gw * g + w * s.m;
@@ -260,6 +280,7 @@ private:
     }
 
     std::shared_ptr<const detail::PUFieldData> data_;
+    std::shared_ptr<const std::vector<Scalar>> factors_;  ///< per-support weight factors (none: all 1)
 };
 
 /// Result of PUField::build.

@@ -17,6 +17,8 @@
 #include <kintsugi/mesh/marching_tetrahedra.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
+#include <kintsugi/reconstruct/pu_field.hpp>
+#include <kintsugi/spatial/kd_tree.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Hidden_point_memory_policy.h>
@@ -28,6 +30,8 @@
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <CGAL/property_map.h>
 #include <CGAL/spatial_sort.h>
+
+#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <array>
@@ -329,6 +333,106 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
         }
     }
     return turned;
+}
+
+/// Marks the points farther than `fraction` x r_i from the centre c_i of every support
+/// listed in `ids`. The supports are searched in bands of radii within a factor 2, so a
+/// query meets only supports of one size at a time.
+inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSupport>& sup,
+                             const std::vector<Index>& ids, Scalar fraction, std::vector<std::uint8_t>& out) {
+    out.assign(x.size(), 1);
+    if (ids.empty() || !(fraction > 0)) return;
+    // Band b holds the radii in [2^b, 2^(b+1)).
+    std::vector<std::pair<int, Index>> by_band;
+    by_band.reserve(ids.size());
+    for (const Index i : ids)
+        if (sup[i].radius > 0) by_band.emplace_back(static_cast<int>(std::floor(std::log2(sup[i].radius))), i);
+    std::sort(by_band.begin(), by_band.end());
+    std::size_t b0 = 0;
+    while (b0 < by_band.size()) {
+        std::size_t b1 = b0;
+        while (b1 < by_band.size() && by_band[b1].first == by_band[b0].first) ++b1;
+        std::vector<Vec3> centres;
+        std::vector<Scalar> reach;  // fraction x r_i
+        for (std::size_t k = b0; k < b1; ++k) {
+            centres.push_back(sup[by_band[k].second].center);
+            reach.push_back(fraction * sup[by_band[k].second].radius);
+        }
+        const Scalar rmax = fraction * std::ldexp(Scalar(1), by_band[b0].first + 1);
+        const KdTree tree(std::move(centres), 0);
+        parallel_for(0, x.size(), [&](std::size_t i) {
+            if (!out[i]) return;
+            thread_local std::vector<Neighbor> nb;
+            tree.radius_search_squared(x[i], rmax * rmax, nb, false);
+            for (const auto& q : nb)
+                if (q.squared_distance < reach[q.index] * reach[q.index]) {
+                    out[i] = 0;
+                    return;
+                }
+        }, 256);
+        b0 = b1;
+    }
+}
+
+/// Step 7, unsupported vertices: the vertices with free[v] != 0 take the positions
+/// that minimise Σ_i |L x_i|² (L the uniform umbrella operator, mean of the one ring
+/// minus the vertex; the sum over every vertex whose umbrella involves a free vertex)
+/// plus delta Σ_free |x_v - x_v⁰|² (delta tiny: keeps a component with no fixed vertex
+/// where it is), the other vertices fixed: a thin-plate patch that continues the
+/// position and the slope of the surface around it. Returns the number of free vertices.
+inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& topo,
+                                   const std::vector<std::uint8_t>& free, Scalar delta = 1e-8) {
+    const std::size_t n = x.size();
+    constexpr Index none = std::numeric_limits<Index>::max();
+    std::vector<Index> col(n, none);
+    std::vector<Index> vars;
+    for (Index v = 0; v < n; ++v)
+        if (free[v] && !topo.vertex_neighbors(v).empty()) {
+            col[v] = vars.size();
+            vars.push_back(v);
+        }
+    const std::size_t m = vars.size();
+    if (m == 0) return 0;
+    // Rows: every vertex that is free or has a free neighbour.
+    std::vector<std::uint8_t> row(n, 0);
+    for (const Index v : vars) {
+        row[v] = 1;
+        for (const Index u : topo.vertex_neighbors(v)) row[u] = 1;
+    }
+    std::vector<Eigen::Triplet<Scalar>> trip;
+    Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs = Eigen::Matrix<Scalar, Eigen::Dynamic, 3>::Zero(
+        static_cast<Eigen::Index>(m), 3);
+    std::vector<std::pair<Index, Scalar>> a;  // free part of the row: (column, coefficient)
+    for (Index i = 0; i < n; ++i) {
+        if (!row[i]) continue;
+        const auto nb = topo.vertex_neighbors(i);
+        if (nb.empty()) continue;
+        const Scalar c = Scalar(1) / static_cast<Scalar>(nb.size());
+        a.clear();
+        Vec3 b = Vec3::Zero();
+        auto add = [&](Index v, Scalar coef) {
+            if (col[v] != none) a.emplace_back(col[v], coef);
+            else b += coef * x[v];
+        };
+        add(i, -1);
+        for (const Index u : nb) add(u, c);
+        for (const auto& [p, ap] : a) {
+            for (const auto& [q, aq] : a) trip.emplace_back(static_cast<int>(p), static_cast<int>(q), ap * aq);
+            rhs.row(static_cast<Eigen::Index>(p)) -= ap * b.transpose();
+        }
+    }
+    for (std::size_t k = 0; k < m; ++k) {
+        trip.emplace_back(static_cast<int>(k), static_cast<int>(k), delta);
+        rhs.row(static_cast<Eigen::Index>(k)) += delta * x[vars[k]].transpose();
+    }
+    Eigen::SparseMatrix<Scalar> A(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+    A.setFromTriplets(trip.begin(), trip.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<Scalar>> solver(A);
+    if (solver.info() != Eigen::Success) return 0;
+    const Eigen::Matrix<Scalar, Eigen::Dynamic, 3> sol = solver.solve(rhs);
+    if (solver.info() != Eigen::Success || !sol.allFinite()) return 0;
+    for (std::size_t k = 0; k < m; ++k) x[vars[k]] = sol.row(static_cast<Eigen::Index>(k)).transpose();
+    return m;
 }
 
 }  // namespace kintsugi::detail
