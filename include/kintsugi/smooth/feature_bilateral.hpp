@@ -517,7 +517,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         for (std::size_t it = 0; it < params.face_iterations; ++it) {
             const double n = static_cast<double>(params.face_iterations);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
-                                static_cast<double>(it + 1) / n, ws, &barriers);
+                                static_cast<double>(it + 1) / n, ws, &barriers, it > 0);
         }
         result.timings = progress.finish();
     } catch (const detail::cancelled_exception&) {

@@ -143,12 +143,10 @@ public:
             order.begin()));
         index_.resize(order.size());
         point_.resize(order.size());
-        local_.resize(order.size());
         generation_ = next_generation();
         parallel_for(0, order.size(), [&](std::size_t k) {
             index_[k] = order[k].second;
             point_[k] = pts[order[k].second];
-            local_[k] = (point_[k] - lo_).cast<float>();
         }, 4096);
         start_.clear();
         auto& keys = keys_;
@@ -159,6 +157,30 @@ public:
                 start_.push_back(static_cast<std::uint32_t>(k));
             }
         start_.push_back(static_cast<std::uint32_t>(order.size()));
+        // Single-precision columns relative to lo_, each cell padded to a multiple of 4
+        // with points at infinity (never inside a cube), for gather().
+        const std::size_t ncell = keys.size();
+        pad_start_.resize(ncell + 1);
+        pad_start_[0] = 0;
+        for (std::size_t c = 0; c < ncell; ++c) pad_start_[c + 1] = pad_start_[c] + (start_[c + 1] - start_[c] + 3) / 4 * 4;
+        px_.resize(pad_start_[ncell]);
+        py_.resize(pad_start_[ncell]);
+        pz_.resize(pad_start_[ncell]);
+        pidx_.resize(pad_start_[ncell]);
+        parallel_for(0, ncell, [&](std::size_t c) {
+            std::uint32_t out = pad_start_[c];
+            for (std::uint32_t j = start_[c]; j < start_[c + 1]; ++j, ++out) {
+                const Eigen::Vector3f q = (point_[j] - lo_).cast<float>();
+                px_[out] = q.x();
+                py_[out] = q.y();
+                pz_[out] = q.z();
+                pidx_[out] = index_[j];
+            }
+            for (; out < pad_start_[c + 1]; ++out) {
+                px_[out] = py_[out] = pz_[out] = std::numeric_limits<float>::infinity();
+                pidx_[out] = 0;
+            }
+        }, 1024);
         std::size_t cap = 16;
         while (cap < 2 * keys.size()) cap *= 2;
         mask_ = cap - 1;
@@ -227,11 +249,9 @@ public:
     /// The points in the cube of half side h centred at c (boundary included), in the
     /// same order as for_each_in_cube: indices into `index`, squared distances into
     /// `dist2` (both overwritten). The cube test runs in single precision relative to
-    /// the grid's corner, four points at a time (SSE2), over the points of the query's
-    /// 3×3×3 cells copied once into a per-thread buffer: consecutive queries from the
-    /// same cell (the usual case in spatial order) reuse it. No branch depends on
-    /// which points fall inside (that is as good as random, and mispredicted branches
-    /// cost more than the test).
+    /// the grid's corner, on the cells' padded columns four points at a time (SSE2),
+    /// with no branch on which points fall inside (that is as good as random, and
+    /// mispredicted branches cost more than the test).
     void gather(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {
         index.clear();
         dist2.clear();
@@ -245,13 +265,35 @@ public:
             });
             return;
         }
-        // A few cells' buffers per thread (direct-mapped by cell): the spatial order of
-        // the queries crosses cell borders often, and returns.
-        thread_local std::array<Candidates, 32> buffers;
-        const std::uint64_t home = key(coord(c));  // the query's cell, empty or not
-        Candidates& cand = buffers[slot(home) % buffers.size()];
-        if (cand.generation != generation_ || cand.cell != home) fill(cand, home);
-        const std::size_t m = cand.x.size();
+        // The non-empty cells around the query's cell: precomputed when that cell holds
+        // points, else found by look-ups (a vertex's cell may hold no face centroid),
+        // kept per thread for the next query from the same cell.
+        thread_local struct {
+            std::uint64_t generation = 0, cell = 0;
+            std::array<std::uint32_t, 27> around{};
+            std::size_t count = 0;
+        } near;
+        const std::uint64_t home = key(coord(c));
+        if (near.generation != generation_ || near.cell != home) {
+            near.generation = generation_;
+            near.cell = home;
+            near.count = 0;
+            if (const std::uint32_t id = find(home); id != none_) {
+                for (std::size_t k = nbr_start_[id]; k < nbr_start_[id + 1]; ++k) near.around[near.count++] = nbr_cell_[k];
+            } else {
+                const std::int64_t x0 = static_cast<std::int64_t>(home & mask21_),
+                                   y0 = static_cast<std::int64_t>((home >> 21) & mask21_),
+                                   z0 = static_cast<std::int64_t>(home >> 42);
+                for (std::int64_t z = z0 - 1; z <= z0 + 1; ++z)
+                    for (std::int64_t y = y0 - 1; y <= y0 + 1; ++y)
+                        for (std::int64_t x = x0 - 1; x <= x0 + 1; ++x) {
+                            if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
+                            if (const std::uint32_t cidx = find({x, y, z}); cidx != none_) near.around[near.count++] = cidx;
+                        }
+            }
+        }
+        std::size_t m = 0;
+        for (std::size_t k = 0; k < near.count; ++k) m += pad_start_[near.around[k] + 1] - pad_start_[near.around[k]];
         index.resize(m);
         dist2.resize(m);
         std::uint32_t* out_i = index.data();
@@ -263,85 +305,39 @@ public:
         const __m128 qx = _mm_set1_ps(q.x()), qy = _mm_set1_ps(q.y()), qz = _mm_set1_ps(q.z()), vh = _mm_set1_ps(hf);
         const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
         alignas(16) float d2[4];
-        for (std::size_t k = 0; k < m; k += 4) {  // m is a multiple of 4 (padding far away)
-            const __m128 dx = _mm_sub_ps(_mm_load_ps(cand.x.data() + k), qx);
-            const __m128 dy = _mm_sub_ps(_mm_load_ps(cand.y.data() + k), qy);
-            const __m128 dz = _mm_sub_ps(_mm_load_ps(cand.z.data() + k), qz);
-            const __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_and_ps(dx, abs_mask), vh),
-                                                    _mm_cmple_ps(_mm_and_ps(dy, abs_mask), vh)),
-                                         _mm_cmple_ps(_mm_and_ps(dz, abs_mask), vh));
-            const int bits = _mm_movemask_ps(in);
-            _mm_store_ps(d2, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz)));
-            for (int b = 0; b < 4; ++b) {
-                out_i[n] = cand.index[k + b];
-                out_d[n] = d2[b];
-                n += static_cast<std::size_t>((bits >> b) & 1);
-            }
-        }
-#else
-        for (std::size_t k = 0; k < m; ++k) {
-            const float dx = cand.x[k] - q.x(), dy = cand.y[k] - q.y(), dz = cand.z[k] - q.z();
-            out_i[n] = cand.index[k];
-            out_d[n] = dx * dx + dy * dy + dz * dz;
-            n += static_cast<std::size_t>((std::abs(dx) <= hf) & (std::abs(dy) <= hf) & (std::abs(dz) <= hf));
-        }
 #endif
+        for (std::size_t cell = 0; cell < near.count; ++cell) {
+            const std::size_t first = pad_start_[near.around[cell]], last = pad_start_[near.around[cell] + 1];
+#if defined(__SSE2__)
+            for (std::size_t k = first; k < last; k += 4) {
+                const __m128 dx = _mm_sub_ps(_mm_loadu_ps(px_.data() + k), qx);
+                const __m128 dy = _mm_sub_ps(_mm_loadu_ps(py_.data() + k), qy);
+                const __m128 dz = _mm_sub_ps(_mm_loadu_ps(pz_.data() + k), qz);
+                const __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_and_ps(dx, abs_mask), vh),
+                                                        _mm_cmple_ps(_mm_and_ps(dy, abs_mask), vh)),
+                                             _mm_cmple_ps(_mm_and_ps(dz, abs_mask), vh));
+                const int bits = _mm_movemask_ps(in);
+                _mm_store_ps(d2, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz)));
+                for (int b = 0; b < 4; ++b) {
+                    out_i[n] = pidx_[k + b];
+                    out_d[n] = d2[b];
+                    n += static_cast<std::size_t>((bits >> b) & 1);
+                }
+            }
+#else
+            for (std::size_t k = first; k < last; ++k) {
+                const float dx = px_[k] - q.x(), dy = py_[k] - q.y(), dz = pz_[k] - q.z();
+                out_i[n] = pidx_[k];
+                out_d[n] = dx * dx + dy * dy + dz * dz;
+                n += static_cast<std::size_t>((std::abs(dx) <= hf) & (std::abs(dy) <= hf) & (std::abs(dz) <= hf));
+            }
+#endif
+        }
         index.resize(n);
         dist2.resize(n);
     }
 
 private:
-    /// The points of one cell's 3×3×3 neighbourhood as single-precision columns,
-    /// padded to a multiple of 4 with points at infinity (never inside a cube).
-    struct Candidates {
-        std::uint64_t generation = 0;
-        std::uint64_t cell = 0;  // key of the query cell
-        std::vector<float, Eigen::aligned_allocator<float>> x, y, z;
-        std::vector<std::uint32_t> index;
-    };
-    void fill(Candidates& cand, std::uint64_t home) const {
-        cand.generation = generation_;
-        cand.cell = home;
-        // The non-empty cells around: precomputed for a non-empty home cell, else found
-        // by look-ups (a vertex's cell may hold no face centroid).
-        std::array<std::uint32_t, 27> around{};
-        std::size_t cells = 0;
-        if (const std::uint32_t id = find(home); id != none_) {
-            for (std::size_t k = nbr_start_[id]; k < nbr_start_[id + 1]; ++k) around[cells++] = nbr_cell_[k];
-        } else {
-            const std::int64_t x0 = static_cast<std::int64_t>(home & mask21_),
-                               y0 = static_cast<std::int64_t>((home >> 21) & mask21_),
-                               z0 = static_cast<std::int64_t>(home >> 42);
-            for (std::int64_t z = z0 - 1; z <= z0 + 1; ++z)
-                for (std::int64_t y = y0 - 1; y <= y0 + 1; ++y)
-                    for (std::int64_t x = x0 - 1; x <= x0 + 1; ++x) {
-                        if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
-                        if (const std::uint32_t cidx = find({x, y, z}); cidx != none_) around[cells++] = cidx;
-                    }
-        }
-        std::size_t m = 0;
-        for (std::size_t k = 0; k < cells; ++k) m += start_[around[k] + 1] - start_[around[k]];
-        const std::size_t padded = (m + 3) / 4 * 4;
-        cand.x.resize(padded);
-        cand.y.resize(padded);
-        cand.z.resize(padded);
-        cand.index.resize(padded);
-        float *x = cand.x.data(), *y = cand.y.data(), *z = cand.z.data();
-        std::uint32_t* id = cand.index.data();
-        std::size_t n = 0;
-        for (std::size_t k = 0; k < cells; ++k)
-            for (std::uint32_t j = start_[around[k]]; j < start_[around[k] + 1]; ++j, ++n) {
-                x[n] = local_[j].x();
-                y[n] = local_[j].y();
-                z[n] = local_[j].z();
-                id[n] = index_[j];
-            }
-        for (; n < padded; ++n) {
-            x[n] = y[n] = z[n] = std::numeric_limits<float>::infinity();
-            id[n] = 0;
-        }
-    }
-
     /// Calls visit(cell) for every non-empty cell that may hold points of the cube of
     /// half side h centred at c, in (z, y, x) order.
     template <class Visit>
@@ -404,8 +400,11 @@ private:
     std::vector<std::uint32_t> index_, start_, table_cell_, nbr_cell_;
     std::vector<std::size_t> nbr_start_;
     std::vector<Vec3> point_;
-    std::vector<Eigen::Vector3f> local_;  // point_ − lo_ in single precision (gather)
-    std::uint64_t generation_ = 0;        // unique per build (gather's per-thread cache)
+    // gather(): point_ − lo_ in single precision and the indices, by cell, each cell
+    // padded to a multiple of 4 (pad_start_: the cells' first slots)
+    std::vector<float> px_, py_, pz_;
+    std::vector<std::uint32_t> pidx_, pad_start_;
+    std::uint64_t generation_ = 0;  // unique per build (gather's per-thread cache)
     static std::uint64_t next_generation() {
         static std::atomic<std::uint64_t> counter{0};
         return ++counter;
@@ -459,6 +458,8 @@ struct Neighbourhoods {
         std::vector<float> weight;
     };
     std::vector<Part> parts;
+    std::size_t items = 0;  ///< the item count and cube half side of the last build
+    Scalar scale = 0;
     /// The neighbours of item i: indices and weights, `size` of each.
     struct Span {
         const std::uint32_t* index;
@@ -599,7 +600,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
                                         Scalar scale, std::size_t iterations, Progress& progress, double from,
                                         double to, const Barriers* barriers = nullptr,
                                         const std::vector<unsigned char>* near = nullptr,
-                                        Neighbourhoods* lists = nullptr) {
+                                        Neighbourhoods* lists = nullptr, bool keep_sets = false) {
     const std::size_t nf = normals.size();
     if (iterations == 0 || nf == 0) return normals;
     const Scalar s_mf = scale / 2, s_mg = 0.6, h = scale;
@@ -607,7 +608,18 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
     Neighbourhoods local;
     Neighbourhoods& nb = lists ? *lists : local;
     const GaussTable<> spatial(s_mf, 3 * h * h);
-    build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& append) {
+    if (keep_sets && lists && nb.items == nf && nb.scale == h) {  // same sets, weights from the positions now
+        parallel_for(0, nb.parts.size(), [&](std::size_t c) {
+            Neighbourhoods::Part& part = nb.parts[c];
+            for (std::size_t k = 0; k + 1 < part.offset.size(); ++k) {
+                const Vec3& ct = g.centroid[c * Neighbourhoods::chunk + k];
+                for (std::uint32_t j = part.offset[k]; j < part.offset[k + 1]; ++j) {
+                    const std::uint32_t q = part.index[j];
+                    part.weight[j] = static_cast<float>(g.area[q] * spatial((g.centroid[q] - ct).squaredNorm()));
+                }
+            }
+        }, 1);
+    } else build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& append) {
         if (g.area[t] == 0) return;
         thread_local std::vector<std::uint32_t> found;
         thread_local std::vector<Scalar> dist2;
@@ -628,6 +640,8 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
         for (std::size_t k = 0; k < n; ++k) weight[k] = static_cast<float>(g.area[found[k]] * spatial(dist2[k]));
         append(found.data(), weight.data(), n);
     });
+    nb.items = nf;
+    nb.scale = h;
     // g(Y) = exp(−Y²/(2σ_mg²)), 0 for Y > 1, evaluated by range_weight (below).
     const float a_mg = static_cast<float>(1 / (2 * s_mg * s_mg));
     // The passes run in single precision (normals as padded float4: half the memory
@@ -720,7 +734,8 @@ struct FeatureSettings {
 /// edge strength s_i = v2 / v1 and the sharp edges.
 inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
                                    const FaceGeometry& geo, Scalar mean_edge, const FeatureSettings& st,
-                                   Progress& progress, double from, double to, Workspace& ws) {
+                                   Progress& progress, double from, double to, Workspace& ws,
+                                   bool keep_sets = false) {
     const std::size_t nv = V.size();
     FeatureData out;
     out.strength.assign(nv, 0);
@@ -734,15 +749,26 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
     const double mid = from + (to - from) * (st.prefilter_iterations ? 0.5 : 0.0);
     const std::vector<Vec3> N = st.prefilter_iterations
         ? filter_normals(geo, grid, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid,
-                         nullptr, nullptr, &ws.lists)
+                         nullptr, nullptr, &ws.lists, keep_sets)
         : geo.normal;
     const auto& A = geo.area;
     blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
-        Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
-        grid.for_each_in_cube(V[v], h, [&](Index q, Scalar d2) {
-            const Scalar w = A[q] * std::exp(-std::sqrt(d2) / falloff);
-            T.noalias() += w * N[q] * N[q].transpose();
-        });
+        thread_local std::vector<std::uint32_t> found;
+        thread_local std::vector<Scalar> dist2;
+        grid.gather(V[v], h, found, dist2);
+        Scalar xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;  // local sums (see filter_normals)
+        for (std::size_t k = 0; k < found.size(); ++k) {
+            const Vec3& n = N[found[k]];
+            const Scalar w = A[found[k]] * std::exp(-std::sqrt(dist2[k]) / falloff);
+            xx += w * n.x() * n.x();
+            xy += w * n.x() * n.y();
+            xz += w * n.x() * n.z();
+            yy += w * n.y() * n.y();
+            yz += w * n.y() * n.z();
+            zz += w * n.z() * n.z();
+        }
+        Eigen::Matrix3d T;
+        T << xx, xy, xz, xy, yy, yz, xz, yz, zz;
         const Scalar tr = T.trace();
         if (!(tr > 0) || !std::isfinite(tr)) return;  // no face around: not a feature
         T /= tr;
@@ -862,7 +888,7 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
                            const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
                            Progress& progress, double from, double to, Workspace& ws,
-                           const Barriers* barriers = nullptr) {
+                           const Barriers* barriers = nullptr, bool keep_sets = false) {
     FaceGeometry& g = ws.geometry;
     compute_face_geometry(V, F, g);
     const std::size_t nv = V.size();
@@ -895,7 +921,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
 
     // 3) normals, normal_iterations times.
     std::vector<Vec3> nf_ = filter_normals(g, grid, g.normal, st.c * L, st.normal_iterations, progress, from, mid,
-                                           barriers, &near_face, &ws.lists);
+                                           barriers, &near_face, &ws.lists, keep_sets);
 
     // 4) vertices: r = i, q = t* (same cube, around p_i); I = Π_t, w = a_t*. Repeated
     // vertex_iterations times with the filtered normals n'_t, the centroids following
@@ -957,11 +983,12 @@ inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const
         const std::vector<unsigned char> none(V.size(), 0);
         for (std::size_t it = 0; it < presmooth; ++it)
             face_iteration(W, F, none, has_face, L, fs, progress, 0.5 * static_cast<double>(it) / presmooth,
-                           0.5 * static_cast<double>(it + 1) / presmooth, ws);
+                           0.5 * static_cast<double>(it + 1) / presmooth, ws, nullptr, it > 0);
     }
     FaceGeometry geo;
     compute_face_geometry(W, F, geo);
-    return detect_features(W, F, topo, geo, L, st, progress, presmooth > 0 ? 0.5 : 0.0, 1.0, ws);
+    // The prefilter keeps the pre-smoothing's neighbour sets when it has the same cube.
+    return detect_features(W, F, topo, geo, L, st, progress, presmooth > 0 ? 0.5 : 0.0, 1.0, ws, presmooth > 0);
 }
 
 }  // namespace kintsugi::detail::fbs
