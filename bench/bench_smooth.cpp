@@ -14,24 +14,22 @@
 //     lengths) of ours, features = false, Taubin and CGAL's smooth_shape, each peer at the
 //     best setting of a small sweep. Printed at the end; skipped when the folder is absent.
 //
-// Measured 2026-11-23 on this 2-core machine, shared with other engineers' builds (load
-// average 4-5, so wall times are well above CPU time / 2), 589,824 faces:
-//   before (kd-tree radius queries, sorted, rebuilt per pass): 129 s wall (features 94.5 s,
-//   edge smoothing 2.2 s, face smoothing 34.3 s; 230 s in an earlier, busier run).
-//   now (grid hash, one gather per position update, Morton order, workspace): 24.3 s wall,
-//   16.1 s CPU over all threads (features 12.5 s, face smoothing 11.2 s wall; another run
-//   22.2 s wall / 14.9 s CPU); features = false 13.1 s; Taubin(30) 1.5 s. The 5 s target is
-//   NOT met: the detection's pre-smoothing (filter 3 at c = 2, ~50 faces per cube) and the
-//   30 filter-3 passes of the face stage dominate.
-//   Memory (peak growth, own process): 157 MB at 147,456 faces, 595 MB at 589,824 (x3.80).
+// Measured 2026-12-01 on this 2-core machine with the other work on it paused,
+// 589,824 faces:
+//   full pipeline 4.06 s wall, 7.60 s CPU over both threads (topology 0.19 s, features
+//   1.65 s, edge smoothing 0.02 s, face smoothing 2.10 s); features = false 2.14 s;
+//   Taubin(30) 0.29 s. Earlier versions: 6.9 s wall / 13.1 s CPU (2026-12-01, before
+//   the SSE2 passes and gathers and the per-stage neighbour sets), 22-24 s wall under
+//   load (2026-11-23), 129 s with kd-tree radius queries rebuilt per pass.
+//   Memory (peak growth, own process): 164 MB at 147,456 faces, 624 MB at 589,824 (x3.81).
 //   Accuracy (normal error deg / vertex RMS in |e|; Taubin and smooth_shape at their best):
-//     Block0.4       noisy 33.72/0.399  ours 5.54/0.145  features=false 6.93/0.163
-//                    Taubin 10.46/0.224  smooth_shape 12.69/0.312  sharp edges P/R 0.928/0.924
-//     SharpSphere0.3 noisy 33.01/0.301  ours 8.46/0.144  features=false 8.54/0.147
+//     Block0.4       noisy 33.72/0.399  ours 5.51/0.144  features=false 6.93/0.163
+//                    Taubin 10.46/0.224  smooth_shape 12.69/0.312  sharp edges P/R 0.930/0.926
+//     SharpSphere0.3 noisy 33.01/0.301  ours 8.37/0.142  features=false 8.52/0.146
 //                    Taubin 10.02/0.265  smooth_shape 10.91/0.278
-//     Twelve0.5Imp.  noisy 28.85/0.348  ours 8.02/0.156  features=false 8.03/0.157
+//     Twelve0.5Imp.  noisy 28.85/0.348  ours 7.99/0.156  features=false 8.00/0.157
 //                    Taubin  8.12/0.195  smooth_shape 11.47/0.333  (63° creases not found)
-//   Volume change +0.14 %, -0.11 %, +0.44 %.
+//   Volume change +0.14 %, -0.12 %, +0.44 %.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

@@ -75,6 +75,10 @@
 /// 0.928/0.924 (and ~10 % faster). Twelve's 63° creases under impulsive noise are not
 /// found (recall 0.015): the pre-smoothing rounds them (median s on them 0.07 after
 /// it), and without it the impulses look like creases (median s elsewhere 0.44).
+/// Gentler pre-smoothing does not recover them without losing the Block: range
+/// d = 0.3 / 0.2 gives Twelve recall 0.03 / 0.05 (Block P/R 0.927/0.910, 0.878/0.900);
+/// threshold 0.15 gives 0.03; prefilter c = 1.5 with d = 0.3 gives 0.10 (Block
+/// 0.895/0.875); c = 1 gives 0.18 (Block 0.796/0.777).
 ///
 /// *Sharp edges bound the face filters* (`separate_features`, default on). In
 /// filters 3 and 4 a face of the cube counts only if it is reached from r's own faces
@@ -104,17 +108,27 @@
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid hash (cell = the cube's half side, the
-/// non-empty cells around each cell precomputed: one hash look-up per query, no
-/// sorting), on an internal copy of the mesh renumbered along a Morton curve. Filter 3
-/// gathers each face's cube once per position update into chunked neighbour lists with
-/// the spatial weights, then runs its passes in single precision over them. Every
-/// output element is computed from the previous pass's values in a fixed neighbour
-/// order (Jacobi updates), so the result does not depend on the thread count. Memory
-/// is linear: about 1.1 KB per face at peak (157 MB at 147K faces, 595 MB at 590K).
-/// Time at 589,824 faces (bench/bench_smooth.cpp): 15–16 s of CPU over all threads,
-/// about half in the detection (its pre-smoothing with c = 2) and half in the face
-/// smoothing (30 filter-3 passes); 22–24 s wall on the shared 2-core machine (the
-/// kd-tree version took 129 s there).
+/// non-empty cells around each cell precomputed by walks over the sorted cell keys),
+/// on an internal copy of the mesh renumbered along a Morton curve. A query tests the
+/// points of its 3×3×3 cells in single precision, four at a time (SSE2), without a
+/// branch on the outcome. Filter 3 gathers each face's cube into chunked neighbour
+/// lists, then runs its passes in single precision over them, four neighbours at a
+/// time, with g evaluated as a polynomial (exp(x) = p(x/8)⁸, relative error ~1e-6).
+/// *Neighbour sets per stage:* the sets are gathered at the first iteration of each
+/// stage (the pre-smoothing, whose sets also serve the detection's prefilter, and the
+/// face smoothing); later iterations keep them and recompute their spatial weights
+/// a_t*·f from the moved positions. A face that moves across a cube's border within a
+/// stage keeps or misses a neighbour whose weight is at most e^-2 there. Measured
+/// against regathering every iteration: Block0.4 5.51° / 0.144 vs 5.54° / 0.145, P/R
+/// 0.930/0.926 vs 0.928/0.924, SharpSphere0.3 8.37° vs 8.46°, Twelve 7.99° vs 8.02°,
+/// for about 15 % less time.
+/// Every output element is computed from the previous pass's values in a fixed
+/// neighbour order (Jacobi updates), so the result does not depend on the thread count.
+/// Memory is linear: about 1.1 KB per face at peak (164 MB at 147K faces, 624 MB at
+/// 590K). Time at 589,824 faces (bench/bench_smooth.cpp, 2-core machine otherwise
+/// idle): 4.1 s wall, 7.6 s of CPU over both threads (detection 1.65 s, face
+/// smoothing 2.10 s); the same filters without features 2.1 s; Taubin(30) 0.29 s.
+/// The paper reports 255 s for its 612K-face scan.
 ///
 /// ## Boundaries, non-manifold input, degenerate faces
 /// Boundary edges are never sharp unless `boundary_edges_sharp`. Boundary vertices are
