@@ -19,30 +19,42 @@
 //
 // Run: bench_reconstruct [--benchmark_filter=100000]
 //
-// Measured 2026-11-23 19:05 UTC on this 2-core machine, nearly idle (load average
-// 0.6-2.7 during the PU runs), wall / CPU seconds, peak RSS of the run's process:
+// Measured 2026-12-01 13:21 UTC on this 2-core machine with no other process running
+// (load average 0.7-1.1), PU+graph-cut with its defaults untrusted_weight = 1e-3 and
+// fill_radius_fraction = 0.75; CGAL Poisson's column from the run of 2026-11-23 19:05 UTC
+// (load 0.6-2.7; same input). Wall / CPU seconds, peak RSS of the run's process:
 //   100K points        PU+graph-cut   CGAL Poisson   Poisson / PU
-//     wall / CPU (s)    1.91 / 2.67    41.0 / 41.0    21x wall
-//     peak RSS (MB)     181            663            3.7x
+//     wall / CPU (s)    2.19 / 3.03    41.0 / 41.0    19x wall
+//     peak RSS (MB)     182            663            3.6x
 //     components        1              15
-//     closed manifold   yes            no (genus sum 441)
-//     mean to truth     0.040 %        16.3 %         407x
-//     Hausdorff         1.63 %         71.6 %
-//     truth to result   0.040 %        0.056 %
-//     area / true area  1.000          14.6
+//     closed manifold   yes (genus 0)  no (genus sum 441)
+//     mean to truth     0.036 %        16.3 %         455x
+//     Hausdorff         1.27 %         71.6 %
+//     truth to result   0.037 %        0.056 %
+//     area / true area  0.996          14.6
 //     (Poisson's run under load gave 18 components, Hausdorff 59.9 %: not repeatable)
-//     PU stages (wall s): pu_octree 0.17, pu_cover 0.66, pu_index 0.02, triangulation
-//     0.74, graph_cut 0.13, marching_tetrahedra 0.15, smoothing 0.02
-//   2M points (PU at level 9): PU+graph-cut 27.0 s wall / 37.4 s CPU, peak RSS 2.0 GB,
-//     1 closed manifold component (genus 0), mean to truth 0.024 %, Hausdorff 3.1 %,
-//     truth to result 0.016 %, area ratio 1.013; stages: pu_octree 2.05, pu_cover 8.79,
-//     pu_index 0.31, triangulation 12.06, graph_cut 2.31, marching_tetrahedra 1.17,
-//     smoothing 0.06.
-//     CGAL Poisson at 2M: not finished after 901 s wall / 819 s CPU, 8.9 GB resident
-//     and growing, when killed at the time limit: > 33x the PU wall time, > 4.4x its memory.
-// Under load 3.3-5.3 (18:41 UTC) the same runs took: 100K PU 4.78 s wall / 3.10 s CPU,
-// Poisson 68.1 s / 45.2 s (661 MB); 2M PU 59.4 s wall / 44.9 s CPU; Poisson 2M was
-// killed at 900 s wall with 5.5 GB resident.
+//     PU stages (wall s): pu_octree 0.21, pu_cover 0.71, pu_index 0.03, triangulation
+//     0.93, graph_cut 0.11, marching_tetrahedra 0.16, smoothing 0.03 (with the fill).
+//     Three other runs the same day: 1.75-2.28 s wall.
+//   2M points (PU at level 9): PU+graph-cut 30.1 s wall / 41.9 s CPU, peak RSS 2.0 GB
+//     (1993 MB), 1 closed manifold component (genus 0), mean to truth 0.013 %,
+//     Hausdorff 0.82 %, truth to result 0.013 %, area ratio 1.003; stages: pu_octree
+//     2.63, pu_cover 9.56, pu_index 0.30, triangulation 13.70, graph_cut 2.27,
+//     marching_tetrahedra 1.32, smoothing 0.14 (with the fill). A second quiet run:
+//     33.7 s / 46.1 s (pu_cover 10.51, triangulation 16.45).
+//     Before the two defaults (2026-11-23, quiet): 100K 1.91 s / 2.67 s, 181 MB, mean
+//     0.040 %, Hausdorff 1.63 %; 2M 27.0 s / 37.4 s, 2.0 GB, mean 0.024 %, Hausdorff
+//     3.1 %, area ratio 1.013, smoothing 0.06 s. The fill adds about 0.08 s at 2M; the
+//     rest of the difference lies in pu_octree, pu_cover and triangulation (2.05, 8.79
+//     and 12.06 s then), which the two defaults do not touch.
+//     CGAL Poisson at 2M (2026-11-23): not finished after 901 s wall / 819 s CPU, 8.9 GB
+//     resident and growing, when killed at the time limit: > 29x the PU wall time, > 4.4x
+//     its memory.
+// Under load 2.4-3.1 (2026-12-01 13:07 UTC, compilers on the other core): 100K PU 2.28 s
+// wall / 2.27 s CPU; 2M PU 41.4 s / 41.2 s (pu_cover 16.88, triangulation 16.63).
+// Under load 3.3-5.3 (2026-11-23 18:41 UTC): 100K PU 4.78 s wall / 3.10 s CPU, Poisson
+// 68.1 s / 45.2 s (661 MB); 2M PU 59.4 s wall / 44.9 s CPU; Poisson 2M was killed at
+// 900 s wall with 5.5 GB resident.
 #ifndef CGAL_EIGEN3_ENABLED
 #define CGAL_EIGEN3_ENABLED 1
 #endif
