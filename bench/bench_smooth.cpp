@@ -16,20 +16,21 @@
 //
 // Measured 2026-12-01 on this 2-core machine with the other work on it paused,
 // 589,824 faces:
-//   full pipeline 4.06 s wall, 7.60 s CPU over both threads (topology 0.19 s, features
-//   1.65 s, edge smoothing 0.02 s, face smoothing 2.10 s); features = false 2.14 s;
-//   Taubin(30) 0.29 s. Earlier versions: 6.9 s wall / 13.1 s CPU (2026-12-01, before
-//   the SSE2 passes and gathers and the per-stage neighbour sets), 22-24 s wall under
-//   load (2026-11-23), 129 s with kd-tree radius queries rebuilt per pass.
-//   Memory (peak growth, own process): 164 MB at 147,456 faces, 624 MB at 589,824 (x3.81).
+//   full pipeline 3.54-3.89 s wall, 6.64-7.32 s CPU over both threads (topology 0.2 s,
+//   features 1.67-1.92 s, edge smoothing 0.02 s, face smoothing 1.60-1.74 s; three runs);
+//   features = false 1.75 s; Taubin(30) 0.36 s. Earlier versions: 6.9 s wall / 13.1 s
+//   CPU (2026-12-01, before the SSE2 passes and gathers and the per-stage neighbour
+//   sets), 22-24 s wall under load (2026-11-23), 129 s with kd-tree radius queries
+//   rebuilt per pass. The machine's speed varies by up to 20 % from hour to hour.
+//   Memory (peak growth, own process): 167 MB at 147,456 faces, 657 MB at 589,824 (x3.93).
 //   Accuracy (normal error deg / vertex RMS in |e|; Taubin and smooth_shape at their best):
-//     Block0.4       noisy 33.72/0.399  ours 5.51/0.144  features=false 6.93/0.163
-//                    Taubin 10.46/0.224  smooth_shape 12.69/0.312  sharp edges P/R 0.930/0.926
-//     SharpSphere0.3 noisy 33.01/0.301  ours 8.37/0.142  features=false 8.52/0.146
+//     Block0.4       noisy 33.72/0.399  ours 5.47/0.144  features=false 6.92/0.163
+//                    Taubin 10.46/0.224  smooth_shape 12.69/0.312  sharp edges P/R 0.936/0.925
+//     SharpSphere0.3 noisy 33.01/0.301  ours 8.34/0.142  features=false 8.52/0.147
 //                    Taubin 10.02/0.265  smooth_shape 10.91/0.278
-//     Twelve0.5Imp.  noisy 28.85/0.348  ours 7.99/0.156  features=false 8.00/0.157
+//     Twelve0.5Imp.  noisy 28.85/0.348  ours 7.99/0.156  features=false 7.99/0.157 (7.990 vs 7.994)
 //                    Taubin  8.12/0.195  smooth_shape 11.47/0.333  (63° creases not found)
-//   Volume change +0.14 %, -0.12 %, +0.44 %.
+//   Volume change +0.13 %, -0.12 %, +0.43 %.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

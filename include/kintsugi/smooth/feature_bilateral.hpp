@@ -124,11 +124,15 @@
 /// for about 15 % less time.
 /// Every output element is computed from the previous pass's values in a fixed
 /// neighbour order (Jacobi updates), so the result does not depend on the thread count.
-/// Memory is linear: about 1.1 KB per face at peak (164 MB at 147K faces, 624 MB at
-/// 590K). Time at 589,824 faces (bench/bench_smooth.cpp, 2-core machine otherwise
-/// idle): 4.1 s wall, 7.6 s of CPU over both threads (detection 1.65 s, face
-/// smoothing 2.10 s); the same filters without features 2.1 s; Taubin(30) 0.29 s.
-/// The paper reports 255 s for its 612K-face scan.
+/// Filter 4 gathers the faces around each vertex once per face iteration and keeps them
+/// for its second pass; the pre-smoothing keeps them for its whole stage (Block0.4
+/// 5.47°, P/R 0.936/0.925, SharpSphere0.3 8.34°: slightly better). Keeping them for the
+/// whole face-smoothing stage too was 15 % faster but moved Twelve0.5Impulsive from
+/// 7.99° to 8.10°. Memory is linear: about 1.2 KB per face at peak (167 MB at 147K
+/// faces, 657 MB at 590K). Time at 589,824 faces (bench/bench_smooth.cpp, 2-core
+/// machine otherwise idle, three runs): 3.5–3.9 s wall, 6.6–7.3 s of CPU over both
+/// threads (detection 1.7–1.9 s, face smoothing 1.6–1.7 s); the same filters without
+/// features 1.75 s; Taubin(30) 0.36 s. The paper reports 255 s for its 612K-face scan.
 ///
 /// ## Boundaries, non-manifold input, degenerate faces
 /// Boundary edges are never sharp unless `boundary_edges_sharp`. Boundary vertices are

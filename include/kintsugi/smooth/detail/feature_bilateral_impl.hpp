@@ -891,15 +891,17 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
                            const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
                            Progress& progress, double from, double to, Workspace& ws,
-                           const Barriers* barriers = nullptr, bool keep_sets = false) {
+                           const Barriers* barriers = nullptr, bool keep_sets = false,
+                           bool keep_vertex_sets = false) {
     FaceGeometry& g = ws.geometry;
     compute_face_geometry(V, F, g);
     const std::size_t nv = V.size();
     const Scalar s_f = (st.vertex_c > 0 ? st.vertex_c : st.c) * L, s_g = st.d * L;
     const Scalar h = s_f;  // the face cube has side 2σ_f
     keep_sets = keep_sets && ws.lists.items == F.size() && ws.lists.scale == st.c * L;
+    keep_vertex_sets = keep_sets && keep_vertex_sets && ws.vertex_lists.items == nv && ws.vertex_lists.scale == h;
     CubeGrid& grid = ws.grid;
-    grid.build(g.centroid, st.c * L, &g.area);
+    if (!keep_vertex_sets) grid.build(g.centroid, st.c * L, &g.area);
     // Faces and vertices whose cube may hold a sharp-edge vertex walk over the faces.
     std::vector<unsigned char> near_face, near_vertex;
     if (barriers && !barriers->active()) barriers = nullptr;
@@ -932,10 +934,12 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     // the moved vertices. The faces around each vertex are gathered once per
     // iteration, before its first pass (through the grid of filter 3: with its larger
     // cells the gather tests more points, which costs less than a grid of its own);
-    // later passes keep them. Keeping them for the whole stage, as filter 3 does, was
-    // 15 % faster but moved Twelve0.5Impulsive from 7.99° to 8.10°.
+    // later passes keep them; the pre-smoothing (`keep_vertex_sets`) keeps them for
+    // the whole stage, as filter 3 does, and then builds no grid after its first
+    // iteration. Keeping them for the whole face-smoothing stage too was 15 % faster
+    // but moved Twelve0.5Impulsive from 7.99° to 8.10°.
     Neighbourhoods& around = ws.vertex_lists;
-    {
+    if (!keep_vertex_sets) {
         build_neighbourhoods(nv, around, progress, mid, mid, [&](std::size_t i, auto&& append) {
             if (fixed[i] || !has_face[i]) return;
             thread_local std::vector<std::uint32_t> found;
@@ -1003,7 +1007,7 @@ inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const
         const std::vector<unsigned char> none(V.size(), 0);
         for (std::size_t it = 0; it < presmooth; ++it)
             face_iteration(W, F, none, has_face, L, fs, progress, 0.5 * static_cast<double>(it) / presmooth,
-                           0.5 * static_cast<double>(it + 1) / presmooth, ws, nullptr, it > 0);
+                           0.5 * static_cast<double>(it + 1) / presmooth, ws, nullptr, it > 0, it > 0);
     }
     FaceGeometry geo;
     compute_face_geometry(W, F, geo);
