@@ -379,7 +379,7 @@ TEST_CASE("reconstruct_pu_graphcut: real mesh — bunny00 sampled with noise, 3 
     // Hausdorff <= 1 % of the diagonal. Measured on this input: 1 component, genus 0,
     // mean 0.036 % / 0.036 % (result->truth / truth->result), Hausdorff 0.67 % / 0.65 %.
     // On seeds 1-6 of the same construction: mean 0.034-0.036 %, result->truth
-    // Hausdorff 0.59-0.95 %. Before the untrusted_weight and fill_radius_fraction
+    // Hausdorff 0.59-0.98 %. Before the untrusted_weight and fill_radius_fraction
     // defaults: mean 0.051 %, Hausdorff 3.7 % here (a bulge of outliers beyond an ear
     // tip that a hole removed) and 0.94-2.8 % on the other seeds (hole fills following
     // the linear extrapolation of the rim planes; spikes where outlier supports bent
