@@ -26,7 +26,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -143,7 +142,6 @@ public:
             order.begin()));
         index_.resize(order.size());
         point_.resize(order.size());
-        generation_ = next_generation();
         parallel_for(0, order.size(), [&](std::size_t k) {
             index_[k] = order[k].second;
             point_[k] = pts[order[k].second];
@@ -255,49 +253,6 @@ public:
     void gather(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {
         index.clear();
         dist2.clear();
-        if (index_.empty()) return;
-        const Vec3 a = (c - lo_) * inv_;
-        if (!(h <= cell_ && a.minCoeff() >= 0 && a.maxCoeff() < static_cast<Scalar>(max_coord_))) {
-            // a cube larger than the cells or a query outside the grid: the general path
-            for_each_in_cube(c, h, [&](Index q, Scalar d2) {
-                index.push_back(static_cast<std::uint32_t>(q));
-                dist2.push_back(d2);
-            });
-            return;
-        }
-        // The non-empty cells around the query's cell: precomputed when that cell holds
-        // points, else found by look-ups (a vertex's cell may hold no face centroid),
-        // kept per thread for the next query from the same cell.
-        thread_local struct {
-            std::uint64_t generation = 0, cell = 0;
-            std::array<std::uint32_t, 27> around{};
-            std::size_t count = 0;
-        } near;
-        const std::uint64_t home = key(coord(c));
-        if (near.generation != generation_ || near.cell != home) {
-            near.generation = generation_;
-            near.cell = home;
-            near.count = 0;
-            if (const std::uint32_t id = find(home); id != none_) {
-                for (std::size_t k = nbr_start_[id]; k < nbr_start_[id + 1]; ++k) near.around[near.count++] = nbr_cell_[k];
-            } else {
-                const std::int64_t x0 = static_cast<std::int64_t>(home & mask21_),
-                                   y0 = static_cast<std::int64_t>((home >> 21) & mask21_),
-                                   z0 = static_cast<std::int64_t>(home >> 42);
-                for (std::int64_t z = z0 - 1; z <= z0 + 1; ++z)
-                    for (std::int64_t y = y0 - 1; y <= y0 + 1; ++y)
-                        for (std::int64_t x = x0 - 1; x <= x0 + 1; ++x) {
-                            if (x < 0 || y < 0 || z < 0 || x > max_coord_ || y > max_coord_ || z > max_coord_) continue;
-                            if (const std::uint32_t cidx = find({x, y, z}); cidx != none_) near.around[near.count++] = cidx;
-                        }
-            }
-        }
-        std::size_t m = 0;
-        for (std::size_t k = 0; k < near.count; ++k) m += pad_start_[near.around[k] + 1] - pad_start_[near.around[k]];
-        index.resize(m);
-        dist2.resize(m);
-        std::uint32_t* out_i = index.data();
-        Scalar* out_d = dist2.data();
         std::size_t n = 0;
         const Eigen::Vector3f q = (c - lo_).cast<float>();
         const float hf = static_cast<float>(h);
@@ -306,33 +261,39 @@ public:
         const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
         alignas(16) float d2[4];
 #endif
-        for (std::size_t cell = 0; cell < near.count; ++cell) {
-            const std::size_t first = pad_start_[near.around[cell]], last = pad_start_[near.around[cell] + 1];
+        for_each_cell(c, h, [&](std::uint32_t cell) {
+            const std::size_t first = pad_start_[cell], last = pad_start_[cell + 1];
+            if (index.size() < n + (last - first)) {  // every slot is written before it is kept
+                index.resize(2 * (n + (last - first)));
+                dist2.resize(index.size());
+            }
+            std::uint32_t* out_i = index.data();
+            Scalar* out_d = dist2.data();
 #if defined(__SSE2__)
-            for (std::size_t k = first; k < last; k += 4) {
-                const __m128 dx = _mm_sub_ps(_mm_loadu_ps(px_.data() + k), qx);
-                const __m128 dy = _mm_sub_ps(_mm_loadu_ps(py_.data() + k), qy);
-                const __m128 dz = _mm_sub_ps(_mm_loadu_ps(pz_.data() + k), qz);
+            for (std::size_t j = first; j < last; j += 4) {
+                const __m128 dx = _mm_sub_ps(_mm_loadu_ps(px_.data() + j), qx);
+                const __m128 dy = _mm_sub_ps(_mm_loadu_ps(py_.data() + j), qy);
+                const __m128 dz = _mm_sub_ps(_mm_loadu_ps(pz_.data() + j), qz);
                 const __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_and_ps(dx, abs_mask), vh),
                                                         _mm_cmple_ps(_mm_and_ps(dy, abs_mask), vh)),
                                              _mm_cmple_ps(_mm_and_ps(dz, abs_mask), vh));
                 const int bits = _mm_movemask_ps(in);
                 _mm_store_ps(d2, _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz)));
                 for (int b = 0; b < 4; ++b) {
-                    out_i[n] = pidx_[k + b];
+                    out_i[n] = pidx_[j + b];
                     out_d[n] = d2[b];
                     n += static_cast<std::size_t>((bits >> b) & 1);
                 }
             }
 #else
-            for (std::size_t k = first; k < last; ++k) {
-                const float dx = px_[k] - q.x(), dy = py_[k] - q.y(), dz = pz_[k] - q.z();
-                out_i[n] = pidx_[k];
+            for (std::size_t j = first; j < last; ++j) {
+                const float dx = px_[j] - q.x(), dy = py_[j] - q.y(), dz = pz_[j] - q.z();
+                out_i[n] = pidx_[j];
                 out_d[n] = dx * dx + dy * dy + dz * dz;
                 n += static_cast<std::size_t>((std::abs(dx) <= hf) & (std::abs(dy) <= hf) & (std::abs(dz) <= hf));
             }
 #endif
-        }
+        });
         index.resize(n);
         dist2.resize(n);
     }
@@ -404,11 +365,6 @@ private:
     // padded to a multiple of 4 (pad_start_: the cells' first slots)
     std::vector<float> px_, py_, pz_;
     std::vector<std::uint32_t> pidx_, pad_start_;
-    std::uint64_t generation_ = 0;  // unique per build (gather's per-thread cache)
-    static std::uint64_t next_generation() {
-        static std::atomic<std::uint64_t> counter{0};
-        return ++counter;
-    }
     std::vector<std::uint64_t> table_key_;
     std::size_t mask_ = 0;
     // Scratch of build(), kept so that rebuilding a grid allocates nothing new.
@@ -423,28 +379,25 @@ inline Scalar gauss(Scalar x2, Scalar sigma) { return std::exp(-x2 / (2 * sigma 
 
 /// Gaussian exp(-x²/(2σ²)) for x² in [0, max2], tabulated (2048 intervals, linear
 /// interpolation: absolute error below 1e-6 for max2 ≤ 40σ²); 0 beyond max2. Used
-/// where the filters evaluate one Gaussian per neighbour per pass; T = float for the
-/// single-precision passes (no conversions in their inner loop).
-template <class T = Scalar>
+/// where the filters evaluate one Gaussian per neighbour per pass.
 class GaussTable {
 public:
-    GaussTable(Scalar sigma, Scalar max2) : scale_(static_cast<T>(n_ / max2)) {
-        const Scalar scale = n_ / max2;
-        for (std::size_t k = 0; k <= n_; ++k) table_[k] = static_cast<T>(gauss(static_cast<Scalar>(k) / scale, sigma));
+    GaussTable(Scalar sigma, Scalar max2) : scale_(n_ / max2) {
+        for (std::size_t k = 0; k <= n_; ++k) table_[k] = gauss(static_cast<Scalar>(k) / scale_, sigma);
         table_[n_ + 1] = table_[n_];
     }
-    T operator()(T x2) const {
-        const T u = x2 * scale_;
-        if (!(u < static_cast<T>(n_))) return u == static_cast<T>(n_) ? table_[n_] : T(0);
-        const int k = static_cast<int>(u);  // u in [0, n_): no sign or range checks
-        const T t = u - static_cast<T>(k);
+    Scalar operator()(Scalar x2) const {
+        const Scalar u = x2 * scale_;
+        if (!(u < static_cast<Scalar>(n_))) return u == static_cast<Scalar>(n_) ? table_[n_] : Scalar(0);
+        const std::size_t k = static_cast<std::size_t>(u);
+        const Scalar t = u - static_cast<Scalar>(k);
         return table_[k] + t * (table_[k + 1] - table_[k]);
     }
 
 private:
     static constexpr std::size_t n_ = 2048;
-    T scale_;
-    std::array<T, n_ + 2> table_{};
+    Scalar scale_;
+    std::array<Scalar, n_ + 2> table_{};
 };
 
 /// Neighbour lists in CSR form (indices and single-precision weights), stored in
@@ -460,7 +413,8 @@ struct Neighbourhoods {
     std::vector<Part> parts;
     std::size_t items = 0;  ///< the item count and cube half side of the last build
     Scalar scale = 0;
-    /// The neighbours of item i: indices and weights, `size` of each.
+    /// The neighbours of item i: indices and weights (nullptr for lists built without
+    /// weights), `size` of each.
     struct Span {
         const std::uint32_t* index;
         const float* weight;
@@ -469,12 +423,14 @@ struct Neighbourhoods {
     [[nodiscard]] Span of(std::size_t i) const {
         const Part& p = parts[i / chunk];
         const std::size_t k = i % chunk;
-        return {p.index.data() + p.offset[k], p.weight.data() + p.offset[k], p.offset[k + 1] - p.offset[k]};
+        return {p.index.data() + p.offset[k], p.weight.empty() ? nullptr : p.weight.data() + p.offset[k],
+                p.offset[k + 1] - p.offset[k]};
     }
 };
 
 /// Builds the lists: gather(i, append) calls append(q, w, count) with the neighbours
-/// q[0..count) of i and their weights, in an order that depends on i alone. Chunks
+/// q[0..count) of i and their weights (w = nullptr: lists without weights), in an
+/// order that depends on i alone. Chunks
 /// are filled in parallel; the lists do not depend on the thread count.
 template <class Gather>
 void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress, double from, double to,
@@ -493,7 +449,7 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
             for (std::size_t i = first; i < last; ++i) {
                 gather(i, [&](const std::uint32_t* q, const float* w, std::size_t count) {
                     part.index.insert(part.index.end(), q, q + count);
-                    part.weight.insert(part.weight.end(), w, w + count);
+                    if (w) part.weight.insert(part.weight.end(), w, w + count);
                 });
                 part.offset[i - first + 1] = static_cast<std::uint32_t>(part.index.size());
             }
@@ -507,7 +463,7 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
 struct Workspace {
     CubeGrid grid;
     Neighbourhoods lists;         // filter 3: faces around each face
-    Neighbourhoods vertex_lists;  // filter 4: faces around each vertex (weights unused)
+    Neighbourhoods vertex_lists;  // filter 4: faces around each vertex (no weights)
     FaceGeometry geometry;
 };
 
@@ -608,7 +564,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const CubeGrid& g
     const double q2 = from + (to - from) * 0.3;
     Neighbourhoods local;
     Neighbourhoods& nb = lists ? *lists : local;
-    const GaussTable<> spatial(s_mf, 3 * h * h);
+    const GaussTable spatial(s_mf, 3 * h * h);
     if (keep_sets && lists && nb.items == nf && nb.scale == h) {  // same sets, weights from the positions now
         parallel_for(0, nb.parts.size(), [&](std::size_t c) {
             Neighbourhoods::Part& part = nb.parts[c];
@@ -922,7 +878,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
                 for (Index v : F[t]) near_vertex[v] = 1;
     }
     // f over the whole cube (0 beyond); g tabulated to 8σ_g (beyond, e^-32 < 1e-13: 0).
-    const GaussTable<> spatial(s_f, 3 * h * h), range(s_g, 64 * s_g * s_g);
+    const GaussTable spatial(s_f, 3 * h * h), range(s_g, 64 * s_g * s_g);
     const double mid = from + (to - from) / 2;
 
     // 3) normals, normal_iterations times.
@@ -944,7 +900,6 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
             if (fixed[i] || !has_face[i]) return;
             thread_local std::vector<std::uint32_t> found;
             thread_local std::vector<Scalar> dist2;
-            thread_local std::vector<float> unused;
             grid.gather(V[i], h, found, dist2);
             std::size_t n = found.size();
             if (barriers && near_vertex[i]) {  // keep the faces reached without crossing a sharp edge
@@ -953,8 +908,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
                 for (std::size_t k = 0; k < found.size(); ++k)
                     if (reached(found[k])) found[n++] = found[k];
             }
-            unused.assign(n, 0.f);
-            append(found.data(), unused.data(), n);
+            append(found.data(), nullptr, n);
         });
         around.items = nv;
         around.scale = h;
