@@ -3,6 +3,7 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // denoise_metrics: closed-form normal angles and vertex RMS, connectivity checks,
 // and the noise levels stated for the Guided Mesh Normal Filtering data.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include <kintsugi/mesh/geometry.hpp>
@@ -124,10 +125,8 @@ TEST_CASE("denoise_metrics: Guided Mesh Normal Filtering noisy/original pairs (r
     for (const auto& [dir, level] : {std::pair{"Block0.4", 0.40}, std::pair{"SharpSphere0.3", 0.30}}) {
         const auto orig = fixtures::shared_data(std::string("guided_denoising/") + dir + "/Original.obj");
         const auto noisy = fixtures::shared_data(std::string("guided_denoising/") + dir + "/Noisy.obj");
-        if (!std::filesystem::exists(orig) || !std::filesystem::exists(noisy)) {
-            MESSAGE("skipped: " << orig << " not found (../shared/data)");
-            continue;
-        }
+        KINTSUGI_REQUIRE_DATA(orig);
+        KINTSUGI_REQUIRE_DATA(noisy);
         IndexedMesh t = fixtures::load(orig), n = fixtures::load(noisy);
         t.normals.clear();
         n.normals.clear();

@@ -4,6 +4,7 @@
 // compare / compare_points / distances_to_mesh against surfaces whose distances are
 // known in closed form, determinism, cancellation, bad input, and real data checked
 // against CGAL's own Hausdorff estimate.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include <kintsugi/adapters/projection.hpp>
@@ -372,10 +373,8 @@ fixtures::SurfaceMesh to_surface_mesh(const IndexedMesh& m) {
 TEST_CASE("distances_to_mesh: bunny res4 vertices to the full bunny, same as CGAL") {
     const auto full = fixtures::shared_data("stanford_bunny/reconstruction/bun_zipper.ply");
     const auto low = fixtures::test_data("bun_zipper_res4.ply");
-    if (!std::filesystem::exists(full) || !std::filesystem::exists(low)) {
-        MESSAGE("skipped: " << full << " or " << low << " not found");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(full);
+    KINTSUGI_REQUIRE_DATA(low);
     const IndexedMesh b = fixtures::load(full);
     const IndexedMesh a = fixtures::load(low);
     const fixtures::SurfaceMesh sb = to_surface_mesh(b);
@@ -400,10 +399,8 @@ TEST_CASE("distances_to_mesh: bunny res4 vertices to the full bunny, same as CGA
 TEST_CASE("compare: CGAL's watertight bunny00 (registered) against bun_zipper, checked against CGAL") {
     const auto zipper = fixtures::shared_data("stanford_bunny/reconstruction/bun_zipper.ply");
     const auto remesh = fixtures::shared_data("cgal/meshes/bunny00.off");
-    if (!std::filesystem::exists(zipper) || !std::filesystem::exists(remesh)) {
-        MESSAGE("skipped: " << zipper << " or " << remesh << " not found (../shared/data)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(zipper);
+    KINTSUGI_REQUIRE_DATA(remesh);
     const IndexedMesh b = fixtures::load(zipper);
     IndexedMesh a = fixtures::load(remesh);
     // ../shared/data/README.md: bun_zipper = 0.155884 * bunny00 + (-0.016805, 0.110267, -0.001525)

@@ -3,6 +3,7 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // topology_report: exact counts on meshes of known topology through every mesh
 // adapter, non-manifold and non-orientable input, and the Stanford bunny.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include <kintsugi/metrics/topology_report.hpp>
@@ -274,10 +275,7 @@ TEST_CASE("topology_report: bun_zipper_res4.ply (non-manifold decimation, in the
 
 TEST_CASE("topology_report: Stanford bunny bun_zipper.ply (acceptance)") {
     const auto path = fixtures::shared_data("stanford_bunny/reconstruction/bun_zipper.ply");
-    if (!std::filesystem::exists(path)) {
-        MESSAGE("skipped: " << path << " not found (../shared/data is for developers and CI)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(path);
     const IndexedMesh m = fixtures::load(path);
     const auto r = ks::topology_report(m);
     CHECK(r.vertices == 35947);

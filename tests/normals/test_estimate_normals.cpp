@@ -4,6 +4,7 @@
 // Normal estimation and orientation: every point-set adapter, known surfaces,
 // several components, bad input, cancellation, thread-count determinism,
 // agreement with CGAL's own functions, accuracy on real scans.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include <kintsugi/adapters/cgal.hpp>
@@ -477,10 +478,8 @@ TEST_CASE("real scan of a closed object (kitten, genus 1): > 99 % of normals ori
 TEST_CASE("real data from ../shared: bunny and a sharp-edged CAD block") {
     const fs::path bunny = kShared / "stanford_bunny" / "reconstruction" / "bun_zipper_points_normals.xyz";
     const fs::path block = kShared / "guided_denoising" / "Block0.4" / "Original_points_normals.xyz";
-    if (!fs::exists(bunny) || !fs::exists(block)) {
-        MESSAGE("skipped: " << kShared << " is not present (developer/CI data only)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(bunny);
+    KINTSUGI_REQUIRE_DATA(block);
     check_real_scan(bunny, 0.99);
     check_real_scan(block, 0.99);
 }

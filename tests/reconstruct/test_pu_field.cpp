@@ -4,6 +4,7 @@
 // PUField: accuracy against known signed distances (sphere, torus), gradient against
 // finite differences, the cover, determinism, containers, real data, bad input,
 // cancellation.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include <kintsugi/adapters/cgal.hpp>
@@ -472,10 +473,7 @@ TEST_CASE("PUField: cancellation at each stage") {
 TEST_CASE("PUField: real data — the Stanford bunny") {
     const std::filesystem::path file =
         std::filesystem::path(KINTSUGI_SHARED_DATA_DIR) / "stanford_bunny/reconstruction/bun_zipper_points_normals.xyz";
-    if (!std::filesystem::exists(file)) {
-        MESSAGE("skipped: " << file << " not found (../shared/data is only present for developers and CI)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(file);
     V pts, nrm;
     std::ifstream in(file);
     double a[6];

@@ -4,6 +4,7 @@
 // PU + graph-cut reconstruction (Nagai, Ohtake, Suzuki 2011): accuracy with outliers,
 // the output guarantee, the graph cut against the plain sign, containers,
 // determinism, bad input, cancellation.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include "reconstruct/pu_test_data.hpp"
@@ -306,10 +307,7 @@ TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range 
 
 TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range scans, all 327K points") {
     const std::filesystem::path dir = std::filesystem::path(KINTSUGI_SHARED_DATA_DIR) / "stanford_bunny" / "scans";
-    if (!std::filesystem::exists(dir)) {
-        MESSAGE("skipped: " << dir.string() << " not found (../shared/data is for developers and CI)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(dir);
     ks::PointCloud all;
     for (const char* name : {"bun000", "bun045", "bun090", "bun180", "bun270", "chin", "ear_back", "top2", "top3"}) {
         const ks::PointCloud scan = ks::read_point_cloud(dir / (std::string(name) + ".ply"));
@@ -338,10 +336,7 @@ TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range 
 
 TEST_CASE("reconstruct_pu_graphcut: real mesh — bunny00 sampled with noise, 3 holes and 10 % outliers") {
     const std::string path = std::string(KINTSUGI_SHARED_DATA_DIR) + "/cgal/meshes/bunny00.off";
-    if (!std::filesystem::exists(path)) {
-        MESSAGE("skipped: " << path << " not found (../shared/data is for developers and CI)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(path);
     const ks::IndexedMesh ref = ks::read_mesh(path);
     ks::BoundingBox bb;
     for (const auto& v : ref.vertices) bb.extend(v);

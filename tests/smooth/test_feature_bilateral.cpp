@@ -4,6 +4,7 @@
 // Feature-aware bilateral smoothing: edge strength on known shapes, sharp edges, the
 // smoothing over every mesh adapter, bad input, cancellation, determinism, boundaries,
 // non-manifold and degenerate input, and accuracy on a real noisy/clean pair.
+#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include "smooth_support.hpp"
@@ -491,10 +492,7 @@ TEST_CASE("real data: Block0.4 (guided denoising) beats Taubin, smooth_shape and
 
 TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers") {
     const auto root = std::filesystem::path(KINTSUGI_SHARED_DATA_DIR) / "guided_denoising";
-    if (!std::filesystem::exists(root)) {
-        MESSAGE("skipped: " << root.string() << " not found (developer data only)");
-        return;
-    }
+    KINTSUGI_REQUIRE_DATA(root);
     for (const char* name : {"SharpSphere0.3", "Twelve0.5Impulsive"}) {
         const auto noisy = ks::read_mesh(root / name / "Noisy.obj");
         const auto clean = ks::read_mesh(root / name / "Original.obj");
