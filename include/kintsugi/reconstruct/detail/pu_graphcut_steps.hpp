@@ -272,7 +272,9 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
         progress.update(static_cast<double>(b0) / static_cast<double>(std::max<std::size_t>(n, 1)));
         const std::size_t b1 = std::min(n, b0 + 16 * block);
         parallel_for(b0, b1, [&](std::size_t i) {
-            const auto [a, b] = mt.vertex_edges[i];
+            // Plain variables, not a structured binding: the nested lambda below
+            // captures them, which clang before 16 rejects for bindings.
+            const Index a = mt.vertex_edges[i][0], b = mt.vertex_edges[i][1];
             if (a == b) return;
             const Vec3& pa = tet_vertices[a];
             const Vec3 d = tet_vertices[b] - pa;
