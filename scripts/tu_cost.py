@@ -1,0 +1,52 @@
+#!/usr/bin/env python3
+"""Compile time and peak memory of every translation unit of a configured build.
+
+Usage: scripts/tu_cost.py BUILD_DIR [--filter SUBSTRING] [--limit-s 60] [--limit-mb 2048]
+
+Reads BUILD_DIR/compile_commands.json (CMAKE_EXPORT_COMPILE_COMMANDS is on for the main
+project), recompiles each TU once without ccache into /dev/null-like scratch objects, one
+at a time, under /usr/bin/time, and prints seconds and peak resident memory, largest
+first. Exits 1 when a TU exceeds the limits (issue 11: one public method header in one
+TU must compile in at most 60 s and 2 GB on the 2-core CI machine).
+"""
+import argparse, json, os, re, shlex, subprocess, sys, tempfile
+
+ap = argparse.ArgumentParser()
+ap.add_argument("build_dir")
+ap.add_argument("--filter", default="")
+ap.add_argument("--limit-s", type=float, default=60.0)
+ap.add_argument("--limit-mb", type=float, default=2048.0)
+a = ap.parse_args()
+
+cc = json.load(open(os.path.join(a.build_dir, "compile_commands.json")))
+rows = []
+with tempfile.TemporaryDirectory() as tmp:
+    for i, e in enumerate(cc):
+        src = e["file"]
+        if a.filter not in src:
+            continue
+        args = shlex.split(e["command"]) if "command" in e else list(e["arguments"])
+        if os.path.basename(args[0]) == "ccache":
+            args = args[1:]
+        # Write the object to scratch so the build tree is untouched.
+        if "-o" in args:
+            args[args.index("-o") + 1] = os.path.join(tmp, f"tu{i}.o")
+        args = [x for x in args if not x.startswith("-MD") and x not in ("-MF",)]
+        cmd = ["/usr/bin/time", "-f", "%e %M"] + args
+        p = subprocess.run(cmd, cwd=e["directory"], capture_output=True, text=True)
+        last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "0 0"
+        m = re.match(r"([\d.]+) (\d+)", last)
+        sec, kb = (float(m.group(1)), int(m.group(2))) if m else (0.0, 0)
+        rows.append((sec, kb / 1024.0, os.path.relpath(src, os.path.dirname(os.path.abspath(a.build_dir + "/../..")))))
+        print(f"{sec:7.1f} s {kb/1024:7.0f} MB  {rows[-1][2]}", flush=True)
+
+rows.sort(reverse=True)
+print("\nlargest first:")
+bad = 0
+for sec, mb, src in rows:
+    flag = ""
+    if sec > a.limit_s or mb > a.limit_mb:
+        flag, bad = "  <-- over the limit", bad + 1
+    print(f"{sec:7.1f} s {mb:7.0f} MB  {src}{flag}")
+print(f"\n{len(rows)} TUs, {sum(r[0] for r in rows):.0f} s in all, {bad} over {a.limit_s:.0f} s / {a.limit_mb:.0f} MB")
+sys.exit(1 if bad else 0)
