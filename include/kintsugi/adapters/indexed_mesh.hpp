@@ -14,7 +14,8 @@
 namespace kintsugi {
 
 /// A point cloud: positions, optional per-point normals and radii (surfels).
-/// `normals` and `radii` are either empty or as long as `points`.
+/// `normals` and `radii` are either empty or as long as `points`. It is a
+/// GrowableSurfelSet: append_surfel(cloud, p, n, r) appends to all three vectors.
 struct PointCloud {
     std::vector<Vec3> points;
     std::vector<Vec3> normals;
@@ -43,9 +44,16 @@ struct point_set_traits<PointCloud> {
         c.normals.clear();
         c.radii.clear();
     }
+    /// Appends a point without a radius (the cloud then has none: has_radii is false).
     static void push_back(PointCloud& c, const Vec3& p, const Vec3& n) {
         c.points.push_back(p);
         c.normals.push_back(n);
+    }
+    /// Appends a surfel. @pre the cloud is empty or already has one radius per point
+    static void push_back(PointCloud& c, const Vec3& p, const Vec3& n, Scalar r) {
+        c.points.push_back(p);
+        c.normals.push_back(n);
+        c.radii.push_back(r);
     }
 };
 
@@ -97,12 +105,7 @@ template <PointSet P>
         PointCloud out;
         out.points = gather_points(p);
         out.normals = gather_normals(p);
-        if constexpr (requires { point_set_traits<P>::radius(p, std::size_t{0}); }) {
-            if (has_radii(p)) {
-                out.radii.resize(out.points.size());
-                for (std::size_t i = 0; i < out.radii.size(); ++i) out.radii[i] = point_set_traits<P>::radius(p, i);
-            }
-        }
+        out.radii = gather_radii(p);
         return out;
     }
 }

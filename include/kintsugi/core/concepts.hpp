@@ -46,6 +46,20 @@ concept GrowablePointSet = PointSet<T> && requires(T& t, const Vec3& p) {
     point_set_traits<T>::push_back(t, p, p);
 };
 
+/// Surfels: an OrientedPointSet whose points also carry a radius (oriented disks
+/// of centre point(i), normal normal(i), radius radius(i)). Whether the radii are
+/// present at run time is asked with has_radii().
+template <class T>
+concept SurfelSet = OrientedPointSet<T> && requires(const T& t, std::size_t i) {
+    { point_set_traits<T>::radius(t, i) } -> std::convertible_to<Scalar>;
+};
+
+/// A GrowablePointSet that appends surfels, radius included (an up-sampler's output):
+/// point_set_traits<T>::push_back(t, position, normal, radius).
+template <class T>
+concept GrowableSurfelSet = GrowablePointSet<T> && SurfelSet<T> &&
+                            requires(T& t, const Vec3& p, Scalar r) { point_set_traits<T>::push_back(t, p, p, r); };
+
 /// Number of points.
 template <PointSet T>
 [[nodiscard]] std::size_t num_points(const T& t) {
@@ -76,14 +90,29 @@ template <PointSet T>
     }
 }
 
-/// Whether t stores a radius for every point (surfels).
+/// Whether t stores a radius for every point (surfels). A type with a radius()
+/// trait and no has_radii() trait always has them.
 template <PointSet T>
 [[nodiscard]] bool has_radii(const T& t) {
     if constexpr (requires { point_set_traits<T>::has_radii(t); }) {
         return point_set_traits<T>::has_radii(t);
+    } else if constexpr (requires { point_set_traits<T>::radius(t, std::size_t{0}); }) {
+        return true;
     } else {
         return false;
     }
+}
+
+/// Radius of surfel i. @pre has_radii(t)
+template <SurfelSet T>
+[[nodiscard]] Scalar radius_at(const T& t, std::size_t i) {
+    return static_cast<Scalar>(point_set_traits<T>::radius(t, i));
+}
+
+/// Appends the surfel (p, n, r) to t.
+template <GrowableSurfelSet T>
+void append_surfel(T& t, const Vec3& p, const Vec3& n, Scalar r) {
+    point_set_traits<T>::push_back(t, p, n, r);
 }
 
 /// Copies the positions into a contiguous vector (the internal layout).
@@ -104,6 +133,19 @@ template <PointSet T>
         const std::size_t n = num_points(t);
         out.resize(n);
         for (std::size_t i = 0; i < n; ++i) out[i] = normal_at(t, i);
+    }
+    return out;
+}
+
+/// Copies the radii into a contiguous vector; empty when t has none.
+template <PointSet T>
+[[nodiscard]] std::vector<Scalar> gather_radii(const T& t) {
+    std::vector<Scalar> out;
+    if constexpr (SurfelSet<T>) {
+        if (!has_radii(t)) return out;
+        const std::size_t n = num_points(t);
+        out.resize(n);
+        for (std::size_t i = 0; i < n; ++i) out[i] = radius_at(t, i);
     }
     return out;
 }

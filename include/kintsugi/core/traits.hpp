@@ -19,7 +19,9 @@
 ///   NormalWritablePointSet:     void set_normal(T&, std::size_t i, const Vec3&);
 ///                               optional void prepare_normals(T&)  (allocate storage)
 ///   GrowablePointSet:           void clear(T&); void push_back(T&, const Vec3& p, const Vec3& n);
-///   optional (surfels):         Scalar radius(const T&, std::size_t i); bool has_radii(const T&)
+///   SurfelSet (surfels):        Scalar radius(const T&, std::size_t i);
+///                               optional bool has_radii(const T&)  (default: true)
+///   GrowableSurfelSet:          void push_back(T&, const Vec3& p, const Vec3& n, Scalar radius);
 ///
 /// mesh_traits<M> — every member is static:
 ///   required (TriangleMesh):    std::size_t num_vertices(const M&); std::size_t num_faces(const M&);

@@ -120,7 +120,8 @@ void read_mesh(const std::filesystem::path& path, M& out, const ReadOptions& opt
 ///         CGAL::Point_set_3, a user type). Normals go through
 ///         point_set_traits<P>::push_back (zero vectors when the file has none; a type
 ///         with `remove_normal_map()`, like CGAL::Point_set_3, then gets its normal map
-///         removed). Radii are kept only for PointCloud.
+///         removed). Radii are kept for a GrowableSurfelSet (PointCloud, a
+///         project_surfels view) when the file has them.
 /// @param out  replaced by the file's points; untouched when an exception is thrown.
 /// @throws io_error naming the file and what is wrong.
 template <GrowablePointSet P>
@@ -132,8 +133,16 @@ void read_point_cloud(const std::filesystem::path& path, P& out, ReadInfo* info 
     } else {
         point_set_traits<P>::clear(out);
         const bool normals = local.has_normals;
-        for (std::size_t i = 0; i < c.points.size(); ++i)
-            point_set_traits<P>::push_back(out, c.points[i], normals ? c.normals[i] : Vec3::Zero());
+        for (std::size_t i = 0; i < c.points.size(); ++i) {
+            const Vec3 n = normals ? c.normals[i] : Vec3::Zero();
+            if constexpr (GrowableSurfelSet<P>) {
+                if (local.has_radii) {
+                    point_set_traits<P>::push_back(out, c.points[i], n, c.radii[i]);
+                    continue;
+                }
+            }
+            point_set_traits<P>::push_back(out, c.points[i], n);
+        }
         if constexpr (requires { out.remove_normal_map(); })
             if (!normals) out.remove_normal_map();
     }
