@@ -13,10 +13,8 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/spatial/jet_fit.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
-
-#include <Eigen/Eigenvalues>
-#include <Eigen/QR>
 
 #include <boost/graph/compressed_sparse_row_graph.hpp>
 #include <boost/graph/prim_minimum_spanning_tree.hpp>
@@ -68,80 +66,23 @@ inline KnnTable knn_table(const KdTree& tree, std::size_t k, Progress& progress)
     return t;
 }
 
-/// Eigenvectors of the neighbours' covariance, by increasing eigenvalue (column
-/// 0 is the PCA normal). Closed form, with the iterative solver as fallback.
-inline Eigen::Matrix3d pca_frame(const std::vector<Vec3>& pts, const NodeIndex* nb, std::size_t k) {
-    Vec3 c = Vec3::Zero();
-    for (std::size_t j = 0; j < k; ++j) c += pts[nb[j]];
-    c /= static_cast<Scalar>(k);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (std::size_t j = 0; j < k; ++j) {
-        const Vec3 d = pts[nb[j]] - c;
-        cov.selfadjointView<Eigen::Lower>().rankUpdate(d);
-    }
-    cov = cov.selfadjointView<Eigen::Lower>();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(cov);
-    Eigen::Matrix3d frame = es.eigenvectors();
-    if (!frame.allFinite() || std::abs(frame.determinant()) < 0.5) {
-        // computeDirect can lose accuracy on nearly degenerate spectra; the
-        // iterative solver is exact to rounding (rare path).
-        es.compute(cov);
-        frame = es.eigenvectors();
-    }
-    return frame;
-}
-
 /// Unit normal of the least-squares plane through the neighbours (smallest
 /// eigenvector of their covariance), as CGAL's pca_estimate_normals.
 inline Vec3 pca_normal(const std::vector<Vec3>& pts, const NodeIndex* nb, std::size_t k) {
-    return pca_frame(pts, nb, k).col(0).normalized();
+    return kintsugi::detail::pca_frame([&](std::size_t j) -> const Vec3& { return pts[nb[j]]; }, k)
+        .col(0)
+        .normalized();
 }
 
 /// Unit normal of the degree-2 jet (osculating quadric) fitted to the
-/// neighbours: Cazals & Pouget's Monge fitting as in CGAL's Monge_via_jet_fitting
-/// (what jet_estimate_normals calls), restated with Eigen: PCA frame, origin at
-/// the point itself (nb[0]), preconditioned least squares z = J(x, y), normal
-/// (-a1, -a2, 1). Solved by column-pivoting Householder QR instead of CGAL's
-/// JacobiSVD: 6x faster per point, same normals to 3e-8 rad (tests/normals checks
-/// it against jet_estimate_normals). Falls back to PCA when the fit is
-/// degenerate (e.g. all neighbours at one place). @pre k >= 6 (row length)
+/// neighbours, origin at the point itself (nb[0]): the library's one jet fit
+/// (spatial/jet_fit.hpp, Cazals & Pouget's Monge fitting as in CGAL's
+/// Monge_via_jet_fitting, which jet_estimate_normals calls; tests/normals checks it
+/// against jet_estimate_normals). Falls back to PCA when the fit is degenerate
+/// (e.g. all neighbours at one place). @pre k >= 6 (row length)
 inline Vec3 jet_normal(const std::vector<Vec3>& pts, const NodeIndex* nb, std::size_t k) {
-    const Eigen::Matrix3d frame = pca_frame(pts, nb, k);
-    // Fitting basis: x = largest eigenvector, y = middle, z = smallest.
-    const Vec3 ex = frame.col(2), ey = frame.col(1), ez = frame.col(0);
-    const Vec3& p0 = pts[nb[0]];
-    const auto rows = static_cast<Eigen::Index>(k);
-    thread_local Eigen::Matrix<Scalar, Eigen::Dynamic, 6> M;
-    thread_local Eigen::Matrix<Scalar, Eigen::Dynamic, 1> Z;
-    thread_local Eigen::Matrix<Scalar, Eigen::Dynamic, 2> xy;
-    M.resize(rows, 6);
-    Z.resize(rows);
-    xy.resize(rows, 2);
-    Scalar h = 0;  // CGAL's preconditioning: mean of (|x| + |y|) / 2
-    for (Eigen::Index j = 0; j < rows; ++j) {
-        const Vec3 d = pts[nb[static_cast<std::size_t>(j)]] - p0;
-        xy(j, 0) = d.dot(ex);
-        xy(j, 1) = d.dot(ey);
-        Z(j) = d.dot(ez);
-        h += std::abs(xy(j, 0)) + std::abs(xy(j, 1));
-    }
-    h /= 2 * static_cast<Scalar>(k);
-    for (Eigen::Index j = 0; j < rows; ++j) {
-        const Scalar x = xy(j, 0) / h, y = xy(j, 1) / h;
-        M(j, 0) = 1;
-        M(j, 1) = x;
-        M(j, 2) = y;
-        M(j, 3) = x * x / 2;
-        M(j, 4) = x * y;
-        M(j, 5) = y * y / 2;
-    }
-    const Eigen::Matrix<Scalar, 6, 1> a = M.colPivHouseholderQr().solve(Z);
-    const Vec3 local = Vec3(-a(1) / h, -a(2) / h, 1).normalized();
-    const Vec3 n = local.x() * ex + local.y() * ey + local.z() * ez;
-    const Scalar len = n.norm();
-    if (!std::isfinite(len) || len < 0.5) return pca_normal(pts, nb, k);
-    return n / len;
+    const JetFit j = kintsugi::detail::fit_jet([&](std::size_t i) -> const Vec3& { return pts[nb[i]]; }, k, 2, false);
+    return j.valid ? j.normal : pca_normal(pts, nb, k);
 }
 
 /// Fits one unit normal per point from the neighbour table (jet when `jet`).
