@@ -5,7 +5,8 @@
 /// @file pu_graphcut_steps.hpp
 /// @brief Steps 4–7 of the PU + graph-cut reconstruction (Nagai, Ohtake, Suzuki
 /// 2011) on the internal layout: regular triangulation of the supports, the graph
-/// of eq. 8–10 and its minimum cut, marching tetrahedra, selective smoothing.
+/// of eq. 8–10 and its minimum cut, marching tetrahedra, selective smoothing
+/// (the thin-plate fill of step 7 is mesh/fair.hpp).
 /// Not templated on the user's types; included by reconstruct/pu_graphcut.hpp.
 ///
 /// Uses CGAL's Regular_triangulation_3 (GPL-3.0-or-later, Triangulation_3 package).
@@ -14,6 +15,7 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/graph/st_cut.hpp>
+#include <kintsugi/mesh/fair.hpp>
 #include <kintsugi/mesh/marching_tetrahedra.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
@@ -30,8 +32,6 @@
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <CGAL/property_map.h>
 #include <CGAL/spatial_sort.h>
-
-#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <array>
@@ -374,67 +374,6 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
         }, 256);
         b0 = b1;
     }
-}
-
-/// Step 7, unsupported vertices: the vertices with free[v] != 0 take the positions
-/// that minimise Σ_i |L x_i|² (L the uniform umbrella operator, mean of the one ring
-/// minus the vertex; the sum over every vertex whose umbrella involves a free vertex)
-/// plus delta Σ_free |x_v - x_v⁰|² (delta tiny: keeps a component with no fixed vertex
-/// where it is), the other vertices fixed: a thin-plate patch that continues the
-/// position and the slope of the surface around it. Returns the number of free vertices.
-inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& topo,
-                                   const std::vector<std::uint8_t>& free, Scalar delta = 1e-8) {
-    const std::size_t n = x.size();
-    constexpr Index none = std::numeric_limits<Index>::max();
-    std::vector<Index> col(n, none);
-    std::vector<Index> vars;
-    for (Index v = 0; v < n; ++v)
-        if (free[v] && !topo.vertex_neighbors(v).empty()) {
-            col[v] = vars.size();
-            vars.push_back(v);
-        }
-    const std::size_t m = vars.size();
-    if (m == 0) return 0;
-    // Rows: every vertex that is free or has a free neighbour.
-    std::vector<std::uint8_t> row(n, 0);
-    for (const Index v : vars) {
-        row[v] = 1;
-        for (const Index u : topo.vertex_neighbors(v)) row[u] = 1;
-    }
-    std::vector<Eigen::Triplet<Scalar>> trip;
-    Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs = Eigen::Matrix<Scalar, Eigen::Dynamic, 3>::Zero(
-        static_cast<Eigen::Index>(m), 3);
-    std::vector<std::pair<Index, Scalar>> a;  // free part of the row: (column, coefficient)
-    for (Index i = 0; i < n; ++i) {
-        if (!row[i]) continue;
-        const auto nb = topo.vertex_neighbors(i);
-        if (nb.empty()) continue;
-        const Scalar c = Scalar(1) / static_cast<Scalar>(nb.size());
-        a.clear();
-        Vec3 b = Vec3::Zero();
-        auto add = [&](Index v, Scalar coef) {
-            if (col[v] != none) a.emplace_back(col[v], coef);
-            else b += coef * x[v];
-        };
-        add(i, -1);
-        for (const Index u : nb) add(u, c);
-        for (const auto& [p, ap] : a) {
-            for (const auto& [q, aq] : a) trip.emplace_back(static_cast<int>(p), static_cast<int>(q), ap * aq);
-            rhs.row(static_cast<Eigen::Index>(p)) -= ap * b.transpose();
-        }
-    }
-    for (std::size_t k = 0; k < m; ++k) {
-        trip.emplace_back(static_cast<int>(k), static_cast<int>(k), delta);
-        rhs.row(static_cast<Eigen::Index>(k)) += delta * x[vars[k]].transpose();
-    }
-    Eigen::SparseMatrix<Scalar> A(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
-    A.setFromTriplets(trip.begin(), trip.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<Scalar>> solver(A);
-    if (solver.info() != Eigen::Success) return 0;
-    const Eigen::Matrix<Scalar, Eigen::Dynamic, 3> sol = solver.solve(rhs);
-    if (solver.info() != Eigen::Success || !sol.allFinite()) return 0;
-    for (std::size_t k = 0; k < m; ++k) x[vars[k]] = sol.row(static_cast<Eigen::Index>(k)).transpose();
-    return m;
 }
 
 }  // namespace kintsugi::detail

@@ -1,0 +1,165 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file fair.hpp
+/// @brief Thin-plate (biharmonic) fairing of a subset of a mesh's vertices: the chosen
+/// vertices take the positions that minimise the squared umbrella Laplacian, the
+/// others stay fixed, so the patch continues the position and the slope of the
+/// surface around it. Used by the hole fill (mesh/holes.hpp) and the PU + graph-cut
+/// reconstruction (its unsupported vertices).
+///
+/// @code
+/// std::vector<std::uint8_t> free(mesh.vertices.size(), 0);
+/// for (auto v : patch) free[v] = 1;                  // these vertices move
+/// auto r = kintsugi::fair_biharmonic(mesh, free);   // r.faired_vertices
+/// @endcode
+
+#include <kintsugi/core/concepts.hpp>
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/error.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/topology.hpp>
+
+#include <Eigen/SparseCholesky>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace kintsugi {
+
+/// Parameters of fair_biharmonic.
+struct FairParams {
+    /// Weight of the pull of each free vertex to its start position, >= 0 (default 1e-8):
+    /// tiny, it only keeps a component with no fixed vertex where it is (the system
+    /// would be singular there).
+    Scalar delta = 1e-8;
+    RunControl control{};
+};
+
+/// Result of fair_biharmonic.
+struct FairResult {
+    Status status = Status::ok;
+    /// Free vertices that have a neighbour (the unknowns of the system); 0 when the
+    /// factorisation failed, in which case nothing moved.
+    std::size_t faired_vertices = 0;
+    std::vector<StageTiming> timings;
+};
+
+namespace detail {
+
+/// The vertices with free[v] != 0 take the positions that minimise Σ_i |L x_i|² (L the
+/// uniform umbrella operator, mean of the one ring minus the vertex; the sum over every
+/// vertex whose umbrella involves a free vertex) plus delta Σ_free |x_v - x_v⁰|², the
+/// other vertices fixed. Solved with Eigen's SimplicialLDLT. Returns the number of
+/// free vertices moved (0 when the factorisation fails; then x is unchanged).
+inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& topo,
+                                   const std::vector<std::uint8_t>& free, Scalar delta = 1e-8) {
+    const std::size_t n = x.size();
+    constexpr Index none = std::numeric_limits<Index>::max();
+    std::vector<Index> col(n, none);
+    std::vector<Index> vars;
+    for (Index v = 0; v < n; ++v)
+        if (free[v] && !topo.vertex_neighbors(v).empty()) {
+            col[v] = vars.size();
+            vars.push_back(v);
+        }
+    const std::size_t m = vars.size();
+    if (m == 0) return 0;
+    // Rows: every vertex that is free or has a free neighbour.
+    std::vector<std::uint8_t> row(n, 0);
+    for (const Index v : vars) {
+        row[v] = 1;
+        for (const Index u : topo.vertex_neighbors(v)) row[u] = 1;
+    }
+    std::vector<Eigen::Triplet<Scalar>> trip;
+    Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs = Eigen::Matrix<Scalar, Eigen::Dynamic, 3>::Zero(
+        static_cast<Eigen::Index>(m), 3);
+    std::vector<std::pair<Index, Scalar>> a;  // free part of the row: (column, coefficient)
+    for (Index i = 0; i < n; ++i) {
+        if (!row[i]) continue;
+        const auto nb = topo.vertex_neighbors(i);
+        if (nb.empty()) continue;
+        const Scalar c = Scalar(1) / static_cast<Scalar>(nb.size());
+        a.clear();
+        Vec3 b = Vec3::Zero();
+        auto add = [&](Index v, Scalar coef) {
+            if (col[v] != none) a.emplace_back(col[v], coef);
+            else b += coef * x[v];
+        };
+        add(i, -1);
+        for (const Index u : nb) add(u, c);
+        for (const auto& [p, ap] : a) {
+            for (const auto& [q, aq] : a) trip.emplace_back(static_cast<int>(p), static_cast<int>(q), ap * aq);
+            rhs.row(static_cast<Eigen::Index>(p)) -= ap * b.transpose();
+        }
+    }
+    for (std::size_t k = 0; k < m; ++k) {
+        trip.emplace_back(static_cast<int>(k), static_cast<int>(k), delta);
+        rhs.row(static_cast<Eigen::Index>(k)) += delta * x[vars[k]].transpose();
+    }
+    Eigen::SparseMatrix<Scalar> A(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+    A.setFromTriplets(trip.begin(), trip.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<Scalar>> solver(A);
+    if (solver.info() != Eigen::Success) return 0;
+    const Eigen::Matrix<Scalar, Eigen::Dynamic, 3> sol = solver.solve(rhs);
+    if (solver.info() != Eigen::Success || !sol.allFinite()) return 0;
+    for (std::size_t k = 0; k < m; ++k) x[vars[k]] = sol.row(static_cast<Eigen::Index>(k)).transpose();
+    return m;
+}
+
+}  // namespace detail
+
+/// @brief Thin-plate fairing of the chosen vertices: minimises Σ |L x|² with the uniform
+/// umbrella Laplacian L, the other vertices fixed (the discrete biharmonic equation
+/// L²x = 0 on the free vertices; Kobbelt, "Discrete fairing", 1997; as the fairing step
+/// of Liepa, "Filling holes in meshes", 2003, with uniform weights).
+///
+/// @tparam M a MutableTriangleMesh (IndexedMesh, Eigen V/F view, CGAL::Surface_mesh...).
+/// @param mesh   positions of the free vertices are written; connectivity is read once.
+/// @param free   one flag per vertex, non-zero = the vertex moves.
+/// @param params delta (>= 0), cancellation.
+/// @pre finite coordinates; each free region should touch a fixed vertex (else it only
+///      stays in place, held by delta).
+/// @throws invalid_input for a free vector of the wrong length, delta < 0 or not finite,
+///         a NaN/Inf coordinate or a face index out of range (mesh untouched).
+/// @return Status::ok with the number of vertices moved (0 if the system could not be
+///         factorised: nothing moved); Status::cancelled: the mesh is untouched.
+template <MutableTriangleMesh M>
+FairResult fair_biharmonic(M& mesh, const std::vector<std::uint8_t>& free, const FairParams& params = {}) {
+    const std::string fn = "kintsugi::fair_biharmonic: ";
+    const std::size_t nv = num_vertices(mesh);
+    if (free.size() != nv)
+        throw invalid_input(fn + "free has " + std::to_string(free.size()) + " entries for " + std::to_string(nv) +
+                            " vertices; give one flag per vertex");
+    if (!(params.delta >= 0) || !std::isfinite(params.delta))
+        throw invalid_input(fn + "delta = " + std::to_string(params.delta) + " must be finite and >= 0 (default 1e-8)");
+    std::vector<Vec3> x(nv);
+    for (Index v = 0; v < nv; ++v) {
+        x[v] = vertex_position(mesh, v);
+        if (!x[v].allFinite())
+            throw invalid_input(fn + "vertex " + std::to_string(v) + " has a NaN or infinite coordinate; remove it");
+    }
+    detail::Progress progress(params.control);
+    FairResult out;
+    try {
+        progress.stage("topology", 0.0, 0.2);
+        const MeshTopology topo(mesh);
+        progress.stage("solve", 0.2, 1.0);
+        out.faired_vertices = detail::biharmonic_fill(x, topo, free, params.delta);
+        progress.check();
+        out.timings = progress.finish();
+    } catch (const detail::cancelled_exception&) {
+        return FairResult{Status::cancelled, 0, {}};
+    }
+    if (out.faired_vertices > 0)
+        for (Index v = 0; v < nv; ++v)
+            if (free[v]) set_vertex_position(mesh, v, x[v]);
+    return out;
+}
+
+}  // namespace kintsugi
