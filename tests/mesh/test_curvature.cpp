@@ -171,6 +171,42 @@ TEST_CASE_TEMPLATE("mesh curvature on a sphere and a torus is within 2 % of the 
     run(torus, torus.mesh(240, 96), "torus");
 }
 
+TEST_CASE_TEMPLATE("curvature at points off the samples (fit_jet_at) is within 2 % on the torus", Kind, ks::PointCloud,
+                   std::vector<Eigen::Vector3d>) {
+    const Torus torus{1.0, 0.4};
+    const ks::PointCloud cloud = torus.sample(20000, 6);
+    // Queries: 2,000 other surface points, pushed off the surface by up to 0.5 % of r.
+    ks::PointCloud other = torus.sample(2000, 7);
+    std::vector<Vec3> queries;
+    for (std::size_t i = 0; i < other.points.size(); ++i)
+        queries.push_back(other.points[i] + other.normals[i] * (0.002 * ((i % 5) - 2.0) / 2));
+    ks::CurvatureResult r;
+    bool oriented = true;
+    if constexpr (std::is_same_v<Kind, ks::PointCloud>) {
+        r = ks::estimate_curvatures_at(cloud, queries);
+    } else {
+        std::vector<Eigen::Vector3d> v(cloud.points.begin(), cloud.points.end());
+        r = ks::estimate_curvatures_at(v, queries);
+        oriented = false;
+    }
+    REQUIRE(r.status == ks::Status::ok);
+    const Errors e = compare(torus, other.points, r.curvatures, oriented);
+    MESSAGE("torus, 2,000 off-sample queries (k 30, degree 4): curvature error mean " << 100 * e.mean << " %, max "
+                                                                                     << 100 * e.max << " %; d1 angle max "
+                                                                                     << e.dir_max << " rad");
+    CHECK(e.invalid == 0);
+    CHECK(e.max < 0.02);
+    CHECK(e.dir_max < 0.02);
+    // fit_jet_at on one neighbourhood gives the surface point above the query.
+    std::vector<Vec3> nb;
+    for (const auto& n : ks::KdTree(cloud.points).knn(queries[0], 30)) nb.push_back(cloud.points[n.index]);
+    const ks::JetFit j = ks::fit_jet_at(queries[0], nb, {.degree = 4});
+    REQUIRE(j.valid);
+    CHECK(torus.distance(j.point) < 1e-5);
+    CHECK_THROWS_WITH_AS((void)ks::estimate_curvatures_at(cloud, std::vector<Vec3>{Vec3(0, 0, NAN)}),
+                         doctest::Contains("estimate_curvatures_at: query point 0 has a NaN"), ks::invalid_input);
+}
+
 TEST_CASE("curvature: bad input throws and names the fix") {
     const ks::PointCloud cloud = Sphere{}.sample(100, 3);
     CHECK_THROWS_WITH_AS((void)ks::estimate_curvatures(ks::PointCloud{}), doctest::Contains("is empty"),

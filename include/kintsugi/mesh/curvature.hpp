@@ -9,6 +9,7 @@
 /// @code
 /// auto r = kintsugi::estimate_curvatures(points, {.k = 60});  // any PointSet
 /// auto m = kintsugi::estimate_curvatures(mesh);                            // any TriangleMesh
+/// auto q = kintsugi::estimate_curvatures_at(points, new_points);           // off-sample queries
 /// // r.curvatures[i].k1 >= k2, d1, d2, normal; mean_curvature(), gaussian_curvature()
 /// @endcode
 ///
@@ -162,6 +163,54 @@ template <PointSet P>
             JetFit jf = detail::fit_jet([&](std::size_t j) -> const Vec3& { return tree.point(nn[j].index); },
                                         nn.size(), degree, true);
             if (!normals.empty()) orient_jet(jf, normals[i]);
+            return detail::curvature::to_principal(jf);
+        });
+        result.timings = progress.finish();
+    } catch (const detail::cancelled_exception&) {
+        result.status = Status::cancelled;
+        result.curvatures.clear();
+        return result;
+    }
+    result.invalid = detail::curvature::count_invalid(result.curvatures);
+    return result;
+}
+
+/// @brief Principal curvatures and directions of the surface sampled by `samples`, at
+/// query points that need not be samples (e.g. new surfels, MLS projections): a jet
+/// fitted to each query's k nearest samples, centred at the query (fit_jet_at).
+/// @tparam P a PointSet (the samples; with normals, the signs follow the nearest
+///         sample's normal). @tparam Q a PointSet (the queries, near the surface).
+/// @param params k, degree, control (rings is unused).
+/// @pre finite coordinates; k in [jet_coefficients(degree), number of samples].
+/// @throws invalid_input for empty samples, a NaN/Inf sample or query, k or degree out of range.
+/// @return status ok: one PrincipalCurvature per query (its normal and curvatures are
+///         those of the fitted surface point nearest above the query); cancelled: empty.
+template <PointSet P, PointSet Q>
+[[nodiscard]] CurvatureResult estimate_curvatures_at(const P& samples, const Q& queries,
+                                                     const CurvatureParams& params = {}) {
+    constexpr const char* fn = "kintsugi::estimate_curvatures_at";
+    std::vector<Vec3> pts = gather_points(samples);
+    detail::curvature::validate(fn, pts, params, "point set");
+    const std::vector<Vec3> q = gather_points(queries);
+    for (std::size_t i = 0; i < q.size(); ++i)
+        if (!q[i].allFinite())
+            throw invalid_input(std::string(fn) + ": query point " + std::to_string(i) +
+                                " has a NaN or infinite coordinate; remove it first");
+    const std::vector<Vec3> normals = gather_normals(samples);
+    CurvatureResult result;
+    detail::Progress progress(params.control);
+    try {
+        progress.stage("neighbours", 0.0, 0.1);
+        const KdTree tree(std::move(pts));
+        progress.stage("fit", 0.1, 1.0);
+        const std::size_t k = params.k;
+        const int degree = params.degree;
+        result.curvatures = detail::curvature::fit_all(q.size(), progress, [&](std::size_t i) {
+            thread_local std::vector<Neighbor> nn;
+            tree.knn(q[i], k, nn);
+            JetFit jf = detail::fit_jet([&](std::size_t j) -> const Vec3& { return tree.point(nn[j].index); },
+                                        nn.size(), q[i], degree, true);
+            if (!normals.empty()) orient_jet(jf, normals[nn.front().index]);
             return detail::curvature::to_principal(jf);
         });
         result.timings = progress.finish();

@@ -106,17 +106,16 @@ Eigen::Matrix3d pca_frame(Get&& get, std::size_t k) {
     return frame;
 }
 
-/// The jet fit over the k points get(0..k-1), origin get(0); `curvature` false
-/// computes the normal only (the normals' hot loop).
+/// The jet fit over the k points get(0..k-1), frame origin `p0` (get(0) for a
+/// sample's own fit); `curvature` false computes the normal only (the normals' hot loop).
 template <class Get>
-JetFit fit_jet(Get&& get, std::size_t k, int degree, bool curvature) {
+JetFit fit_jet(Get&& get, std::size_t k, const Vec3& p0, int degree, bool curvature) {
     JetFit out;
     const std::size_t nc = jet_coefficients(degree);
     if (degree < 2 || degree > 4 || k < nc) return out;
     const Eigen::Matrix3d frame = pca_frame(get, k);
     // Fitting basis: x = largest eigenvector, y = middle, z = smallest.
     const Vec3 ex = frame.col(2), ey = frame.col(1), ez = frame.col(0);
-    const Vec3 p0 = get(0);
     const auto rows = static_cast<Eigen::Index>(k);
     const auto cols = static_cast<Eigen::Index>(nc);
     thread_local Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> M;
@@ -179,6 +178,14 @@ JetFit fit_jet(Get&& get, std::size_t k, int degree, bool curvature) {
     return out;
 }
 
+/// The fit over the k points get(0..k-1) at their first point get(0).
+template <class Get>
+JetFit fit_jet(Get&& get, std::size_t k, int degree, bool curvature) {
+    if (k == 0) return {};
+    const Vec3 p0 = get(0);
+    return fit_jet(get, k, p0, degree, curvature);
+}
+
 }  // namespace detail
 
 /// @brief Fits a jet to a neighbourhood and returns the normal, principal curvatures
@@ -192,6 +199,18 @@ JetFit fit_jet(Get&& get, std::size_t k, int degree, bool curvature) {
 [[nodiscard]] inline JetFit fit_jet(std::span<const Vec3> points, const JetFitParams& params = {}) {
     return detail::fit_jet([&](std::size_t j) -> const Vec3& { return points[j]; }, points.size(), params.degree,
                            true);
+}
+
+/// @brief Same, at a point that need not be a sample: the jet is fitted to `points`
+/// only, in a frame centred at `origin`, and its quantities are those of the surface
+/// point above `origin` (JetFit::point); e.g. the curvature at a new surfel from its
+/// nearest input samples.
+/// @param origin where the quantities are wanted (near the samples: within their spread).
+/// @param points the neighbourhood, at least jet_coefficients(degree) points.
+[[nodiscard]] inline JetFit fit_jet_at(const Vec3& origin, std::span<const Vec3> points,
+                                       const JetFitParams& params = {}) {
+    return detail::fit_jet([&](std::size_t j) -> const Vec3& { return points[j]; }, points.size(), origin,
+                           params.degree, true);
 }
 
 }  // namespace kintsugi
