@@ -37,11 +37,11 @@ struct UserSample {
     int id;
 };
 
-// Closed test shapes with an exact signed distance, positive INSIDE (the field's sign).
+// Closed test shapes with an exact signed distance, negative INSIDE (the field's sign).
 struct Sphere {
     Eigen::Vector3d c{0.2, -0.1, 0.3};
     double R = 1.0;
-    double sd(const Eigen::Vector3d& x) const { return R - (x - c).norm(); }
+    double sd(const Eigen::Vector3d& x) const { return (x - c).norm() - R; }
     void sample(std::size_t n, std::mt19937_64& rng, V& p, V& nrm) const {
         std::normal_distribution<double> g;
         for (std::size_t i = 0; i < n; ++i) {
@@ -55,7 +55,7 @@ struct Torus {
     double R = 1.0, r = 0.4;
     double sd(const Eigen::Vector3d& x) const {
         const double q = std::hypot(x.x(), x.y()) - R;
-        return r - std::hypot(q, x.z());
+        return std::hypot(q, x.z()) - r;
     }
     void sample(std::size_t n, std::mt19937_64& rng, V& p, V& nrm) const {
         std::uniform_real_distribution<double> u(0, 2 * M_PI), acc(0, 1);
@@ -153,7 +153,7 @@ TEST_CASE("PUField: sphere — value, sign, gradient, cover") {
 
     check_field_accuracy(s, pts, nrm, f, 0.05);
 
-    // Gradient: matches central differences, unit length, points inwards.
+    // Gradient: matches central differences, unit length, points outwards.
     std::mt19937_64 r2(5);
     std::uniform_int_distribution<std::size_t> pick(0, pts.size() - 1);
     std::uniform_real_distribution<double> off(-0.03, 0.03);
@@ -171,7 +171,7 @@ TEST_CASE("PUField: sphere — value, sign, gradient, cover") {
         }
         CHECK((g - fd).norm() <= 1e-5 * (1 + g.norm()));
         CHECK(g.norm() == doctest::Approx(1.0).epsilon(0.15));
-        CHECK(g.dot(-nrm[i]) > 0.9);
+        CHECK(g.dot(nrm[i]) > 0.9);
         ks::Vec3 g2;
         CHECK(f.value_and_gradient(x, g2) == f(x));
         CHECK(g2 == g);
@@ -232,7 +232,8 @@ TEST_CASE("PUField: reweighted — factors scale the supports' weights") {
     const ks::PUField alone = f.reweighted(one);
     const ks::PUSupport& sk = f.supports()[k];
     const ks::Vec3 x = sk.center + 0.3 * sk.radius * ks::Vec3(1, 0, 0);
-    CHECK(alone(x) == doctest::Approx(sk.normal.dot(x - sk.origin)).epsilon(1e-9));
+    // (support normals point inwards, g_i > 0 inside; the field is -g_i)
+    CHECK(alone(x) == doctest::Approx(-sk.normal.dot(x - sk.origin)).epsilon(1e-9));
     CHECK(std::isnan(alone(sk.center + 1.01 * sk.radius * ks::Vec3(0, 1, 0))));
     // A tiny factor counts only where nothing else covers x.
     std::vector<double> tiny(ns, 1.0);
@@ -249,7 +250,7 @@ TEST_CASE("PUField: reweighted — factors scale the supports' weights") {
         without += w * si.normal.dot(c - si.origin);
         wsum += w;
     }
-    if (wsum > 0) CHECK(t(c) == doctest::Approx(without / wsum).epsilon(1e-6));
+    if (wsum > 0) CHECK(t(c) == doctest::Approx(-without / wsum).epsilon(1e-6));
     CHECK(f.supports().size() == t.supports().size());  // shares the supports
     CHECK_THROWS_WITH_AS((void)f.reweighted(std::vector<double>(ns + 1, 1.0)), doctest::Contains("factors"),
                          ks::invalid_input);
@@ -269,9 +270,9 @@ TEST_CASE("PUField: torus — value and sign (genus 1)") {
     REQUIRE(res.status == ks::Status::ok);
     check_field_accuracy(t, pts, nrm, res.field, 0.04);
     // The hole of the torus is outside, the tube inside.
-    CHECK(res.field(ks::Vec3(0, 0, 0)) < 0);
-    CHECK(res.field(ks::Vec3(1, 0, 0)) > 0);
-    CHECK(res.field(ks::Vec3(0, -1, 0)) > 0);
+    CHECK(res.field(ks::Vec3(0, 0, 0)) > 0);
+    CHECK(res.field(ks::Vec3(1, 0, 0)) < 0);
+    CHECK(res.field(ks::Vec3(0, -1, 0)) < 0);
 }
 
 TEST_CASE("PUField: inward normals give the same field; seeds change the cover only") {
@@ -494,14 +495,14 @@ TEST_CASE("PUField: real data — the Stanford bunny") {
     for (const auto& p : pts)
         if (std::abs(f(p)) <= f.epsilon()) ++within;
     CHECK(double(within) >= 0.99 * double(pts.size()));
-    // Outward normals: a little outside each point is outside (f < 0), a little inside is inside.
+    // Outward normals: a little outside each point is outside (f > 0), a little inside is inside.
     std::size_t right = 0, tested = 0;
     const double step = 2 * f.epsilon();
     for (std::size_t i = 0; i < pts.size(); i += 10) {
         ++tested;
-        if (f(pts[i] + step * nrm[i]) < 0 && f(pts[i] - step * nrm[i]) > 0) ++right;
+        if (f(pts[i] + step * nrm[i]) > 0 && f(pts[i] - step * nrm[i]) < 0) ++right;
     }
     CHECK(double(right) >= 0.97 * double(tested));
     // Far corners of the domain are outside.
-    CHECK(f(f.domain_min() + ks::Vec3::Constant(1e-6)) < 0);
+    CHECK(f(f.domain_min() + ks::Vec3::Constant(1e-6)) > 0);
 }

@@ -202,6 +202,15 @@ void set_vertex_position(M& m, Index v, const Vec3& p) {
 // ---------------------------------------------------------------- scalar fields
 
 /// A scalar field f: R^3 -> R, called as f(x). Its gradient is optional.
+///
+/// **Sign convention, the same for every kintsugi field and algorithm:** f < 0 INSIDE
+/// the solid, f > 0 OUTSIDE, the surface is the zero set, like a signed distance (whose
+/// gradient points outward). A field approximating a distance gives it in the caller's
+/// units. A point with f == 0 exactly counts as outside wherever a side must be chosen.
+/// Outside its domain (e.g. the bounding cube of PUField) a field returns a quiet NaN;
+/// algorithms treat NaN as "no value" and say what they do with it (extract_isosurface
+/// counts it as outside). A field of the opposite sign is adapted by negating it, e.g.
+/// `[&](const Vec3& x) { return -g(x); }`. f(x) must be thread-safe for const f.
 template <class F>
 concept ScalarField = requires(const F& f, const Vec3& x) {
     { f(x) } -> std::convertible_to<Scalar>;

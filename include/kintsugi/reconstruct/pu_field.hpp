@@ -11,16 +11,18 @@
 /// #include <kintsugi/reconstruct/pu_field.hpp>
 /// auto res = kintsugi::PUField::build(kintsugi::with_normals(pts, nrm), {.max_level = 8, .epsilon = 4e-3});
 /// if (res.status == kintsugi::Status::ok) {
-///     double f = res.field(x);              // > 0 inside, < 0 outside, NaN outside the cube
+///     double f = res.field(x);              // < 0 inside, > 0 outside, NaN outside the cube
 ///     kintsugi::Vec3 g = res.field.gradient(x);
 ///     auto many = res.field.values(xs);     // parallel batch
 /// }
 /// @endcode
 ///
-/// **Sign convention.** Whatever the input normal convention, the field follows the
-/// paper: f > 0 INSIDE the object, f < 0 outside, f = 0 on the surface, and f
-/// approximates the signed distance in the caller's units. Each support's `normal`
-/// (m_i) points INTO the object. kintsugi's default input convention is OUTWARD normals
+/// **Sign convention.** kintsugi's (see ScalarField in core/concepts.hpp): f < 0 INSIDE
+/// the object, f > 0 outside, f = 0 on the surface, and f approximates the signed
+/// distance in the caller's units. This is the paper's f with the sign flipped (the
+/// paper has f > 0 inside); each support's `normal` (m_i) still points INTO the object,
+/// as in the paper, and its local function is g_i(x) = m_i · (x - d_i), so
+/// f = -Σ w_i g_i / Σ w_i. kintsugi's default input convention is OUTWARD normals
 /// (`inward_normals = false`, as every other tool); pass `inward_normals = true` for
 /// data oriented as in the paper. Both give the same field.
 ///
@@ -35,6 +37,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/field/partition_of_unity.hpp>
 #include <kintsugi/reconstruct/detail/pu_cover.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 #include <kintsugi/spatial/octree.hpp>
@@ -94,25 +97,20 @@ struct PUFieldData {
     BoundingBox box;             ///< input bounding box, caller's units
     Scalar epsilon = 0;
     Octree octree;               ///< normalised frame (unit cube centred at 0)
-    // Supports in the normalised frame, structure of arrays for the evaluation loop.
-    struct Eval {
-        Vec3 c;
-        Scalar r, inv_r, r2;
+    /// The support balls in the normalised frame, over the unit cube.
+    PartitionOfUnity pu;
+    /// Local function of support i in the normalised frame: g_i(u) = m · u - md.
+    struct Local {
         Vec3 m;
         Scalar md;  ///< m · d
     };
-    std::vector<Eval> eval;
+    std::vector<Local> local;
     std::vector<PUSupport> supports;  ///< caller's frame
-    // Uniform grid over the unit cube (G^3 cells): for each grid cell, the supports
-    // whose ball meets it (CSR, sorted by support index). G follows the median radius.
-    int grid = 1;
-    std::vector<std::size_t> cell_offsets;
-    std::vector<std::uint32_t> cell_supports;
 };
 }  // namespace detail
 
-/// The PU implicit field f(x) = Σ w_i(x) g_i(x) / Σ w_i(x) (eq. 1) of an oriented
-/// point set. Models DifferentiableScalarField. Immutable; copies share the data;
+/// The PU implicit field f(x) = -Σ w_i(x) g_i(x) / Σ w_i(x) (eq. 1, negative inside) of
+/// an oriented point set. Models DifferentiableScalarField. Immutable; copies share the data;
 /// every query is const and thread-safe. A default-constructed field is empty
 /// (every value NaN).
 class PUField {
@@ -158,6 +156,7 @@ public:
     /// factors[i] >= 0 (eq. 1 becomes Σ a_i w_i g_i / Σ a_i w_i): a support with a
     /// small factor only counts where no full-weight support covers x; 0 removes it
     /// (NaN where only removed supports cover x). Shares the supports with this field.
+    /// The weights are blended by PartitionOfUnity (field/partition_of_unity.hpp).
     /// @throws invalid_input when factors.size() != supports().size() or a factor is
     ///         negative or not finite.
     [[nodiscard]] PUField reweighted(std::vector<Scalar> factors) const {
@@ -173,17 +172,17 @@ public:
     }
 
     /// Whether the field holds supports (false when default-constructed or cancelled).
-    [[nodiscard]] bool empty() const { return !data_ || data_->eval.empty(); }
+    [[nodiscard]] bool empty() const { return !data_ || data_->local.empty(); }
 
-    /// f(x) in the caller's units (≈ signed distance, > 0 inside); NaN outside the
-    /// bounding cube or for an empty field.
+    /// f(x) in the caller's units (≈ signed distance, < 0 inside, > 0 outside); NaN
+    /// outside the bounding cube or for an empty field.
     [[nodiscard]] Scalar value(const Vec3& x) const {
         Vec3 g;
         return evaluate(x, false, g);
     }
     /// Same as value(x).
     [[nodiscard]] Scalar operator()(const Vec3& x) const { return value(x); }
-    /// ∇f(x) (dimensionless; points towards the inside); NaN outside the cube.
+    /// ∇f(x) (dimensionless; points towards the outside); NaN outside the cube.
     [[nodiscard]] Vec3 gradient(const Vec3& x) const {
         Vec3 g;
         evaluate(x, true, g);
@@ -240,43 +239,20 @@ private:
     Scalar evaluate(const Vec3& x, bool want_grad, Vec3& grad) const {
         constexpr Scalar nan = std::numeric_limits<Scalar>::quiet_NaN();
         grad = Vec3::Constant(nan);
-        if (!data_ || data_->eval.empty()) return nan;
-        const Vec3 u = to_unit(x);
-        if (!u.allFinite() || (u.array().abs() > Scalar(0.5)).any()) return nan;
-        const int G = data_->grid;
-        std::size_t cell = 0;
-        for (int k = 2; k >= 0; --k) {
-            const int i = std::min(G - 1, static_cast<int>((u[k] + Scalar(0.5)) * G));
-            cell = cell * static_cast<std::size_t>(G) + static_cast<std::size_t>(std::max(0, i));
-        }
-        Scalar W = 0, F = 0;
-        Vec3 dW = Vec3::Zero(), dF = Vec3::Zero();
-        const auto* ids = data_->cell_supports.data();
-        for (std::size_t k = data_->cell_offsets[cell], e = data_->cell_offsets[cell + 1]; k < e; ++k) {
-            const auto& s = data_->eval[ids[k]];
-            const Vec3 diff = u - s.c;
-            const Scalar d2 = diff.squaredNorm();
-            if (d2 >= s.r2) continue;
-            const Scalar d = std::sqrt(d2);
-            const Scalar t = Scalar(1.5) * d * s.inv_r;
-            const Scalar a = factors_ ? (*factors_)[ids[k]] : Scalar(1);
-            if (a == 0) continue;
-            const Scalar w = a * detail::pu_b2(t);
-            const Scalar g = s.m.dot(u) - s.md;
-            W += w;
-            F += w * g;
-            if (want_grad) {
-                const Vec3 gw = d > 0 ? Vec3(a * detail::pu_b2_derivative(t) * Scalar(1.5) * s.inv_r / d * diff)
-                                      : Vec3::Zero();
-                dW += gw;
-                dF += gw * g + w * s.m;
-            }
-        }
-        if (!(W > 0)) return nan;
-        // f in the caller's units is F/W / scale; its gradient w.r.t. the caller's x is
-        // the gradient of F/W w.r.t. the normalised coordinates.
-        if (want_grad) grad = (dF * W - F * dW) / (W * W);
-        return F / W / data_->scale;
+        if (!data_ || data_->local.empty()) return nan;
+        const auto& local = data_->local;
+        // The paper's F/W (> 0 inside) in the normalised frame; f = -F/W / scale. Its
+        // gradient w.r.t. the caller's x is minus that of F/W w.r.t. the normalised one.
+        const Scalar fw = data_->pu.blend(
+            to_unit(x),
+            [&local](std::size_t i, const Vec3& u, Vec3* lg) {
+                if (lg) *lg = local[i].m;
+                return local[i].m.dot(u) - local[i].md;
+            },
+            factors_ ? factors_->data() : nullptr, want_grad ? &grad : nullptr);
+        if (std::isnan(fw)) return nan;  // grad is NaN too (positive NaNs, like the inputs' checks expect)
+        if (want_grad) grad = -grad;
+        return -(fw / data_->scale);
     }
 
     std::shared_ptr<const detail::PUFieldData> data_;
@@ -407,72 +383,19 @@ inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3
 
         progress.stage("pu_index", 0.85, 1.0);
         const Scalar inv_scale = 1 / data->scale;
-        data->eval.resize(sup.size());
+        data->local.resize(sup.size());
         data->supports.resize(sup.size());
+        std::vector<PUBall> balls(sup.size());
         for (std::size_t i = 0; i < sup.size(); ++i) {
             const auto& s = sup[i];
-            data->eval[i] = {s.c, s.r, 1 / s.r, s.r * s.r, s.m, s.m.dot(s.d)};
+            balls[i] = {s.c, s.r};
+            data->local[i] = {s.m, s.m.dot(s.d)};
             data->supports[i] = PUSupport{data->center + s.c * inv_scale, s.r * inv_scale, s.m,
                                           data->center + s.d * inv_scale, s.count, static_cast<int>(s.level),
                                           s.coherence};
         }
-        // Grid cell -> supports whose ball meets the cell: per block of supports, in
-        // parallel; then a counting sort by cell in support order (deterministic).
-        {
-            std::vector<Scalar> radii(sup.size());
-            for (std::size_t i = 0; i < sup.size(); ++i) radii[i] = sup[i].r;
-            std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2), radii.end());
-            const Scalar r_med = radii[radii.size() / 2];
-            // grid cell side ~ the median radius, G a power of two in [4, 128]
-            int G = 4;
-            while (G < 128 && Scalar(1) / (2 * G) > r_med) G *= 2;
-            data->grid = G;
-        }
-        const int G = data->grid;
-        const std::size_t n_grid = static_cast<std::size_t>(G) * G * G;
-        const std::size_t block = 2048;
-        const std::size_t n_blocks = (sup.size() + block - 1) / block;
-        std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> pairs(n_blocks);
-        const std::size_t blocks_per_round = 16;
-        const Scalar h = Scalar(1) / G;
-        for (std::size_t b0 = 0; b0 < n_blocks; b0 += blocks_per_round) {
-            const std::size_t b1 = std::min(n_blocks, b0 + blocks_per_round);
-            parallel_for(b0, b1, [&](std::size_t b) {
-                auto& out = pairs[b];
-                for (std::size_t i = b * block, e = std::min(sup.size(), (b + 1) * block); i < e; ++i) {
-                    const auto& s = data->eval[i];
-                    std::array<int, 3> lo{}, hi{};
-                    for (int k = 0; k < 3; ++k) {
-                        lo[k] = std::clamp(static_cast<int>(std::floor((s.c[k] - s.r + Scalar(0.5)) * G)), 0, G - 1);
-                        hi[k] = std::clamp(static_cast<int>(std::floor((s.c[k] + s.r + Scalar(0.5)) * G)), 0, G - 1);
-                    }
-                    for (int z = lo[2]; z <= hi[2]; ++z)
-                        for (int y = lo[1]; y <= hi[1]; ++y)
-                            for (int x = lo[0]; x <= hi[0]; ++x) {
-                                const Vec3 bl(x * h - Scalar(0.5), y * h - Scalar(0.5), z * h - Scalar(0.5));
-                                if (detail::pu_box_distance_squared(s.c, bl, bl + Vec3::Constant(h)) >= s.r2) continue;
-                                out.push_back({static_cast<std::uint32_t>((static_cast<std::size_t>(z) * G + y) * G + x),
-                                               static_cast<std::uint32_t>(i)});
-                            }
-                }
-            }, 1);
-            progress.update(0.8 * static_cast<double>(b1) / static_cast<double>(n_blocks));
-        }
-        data->cell_offsets.assign(n_grid + 1, 0);
-        std::size_t total = 0;
-        for (const auto& v : pairs) {
-            total += v.size();
-            for (const auto& pr : v) ++data->cell_offsets[pr.first + 1];
-        }
-        for (std::size_t c = 0; c < n_grid; ++c) data->cell_offsets[c + 1] += data->cell_offsets[c];
-        data->cell_supports.resize(total);
-        {
-            std::vector<std::size_t> fill(data->cell_offsets.begin(), data->cell_offsets.end() - 1);
-            for (auto& v : pairs) {
-                for (const auto& pr : v) data->cell_supports[fill[pr.first]++] = pr.second;
-                std::vector<std::pair<std::uint32_t, std::uint32_t>>().swap(v);
-            }
-        }
+        data->pu = PartitionOfUnity::build(std::move(balls), Vec3::Constant(Scalar(-0.5)), Scalar(1),
+                                           [&](double f) { progress.update(0.8 * f); });
         res.field.data_ = std::move(data);
         res.timings = progress.finish();
         res.status = Status::ok;

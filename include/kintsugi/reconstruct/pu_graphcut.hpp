@@ -47,7 +47,7 @@ enum class NormalConvention {
 /// How the tetrahedra's vertices are labelled inside/outside.
 enum class Labeling {
     graphcut,  ///< minimum cut of the graph of eq. 8–10 (the paper's method)
-    sign,      ///< the plain sign of the PU field (f > 0 inside), for comparison
+    sign,      ///< the plain sign of the PU field (f < 0 inside), for comparison
 };
 
 /// Parameters of reconstruct_pu_graphcut (aggregate; field order is API, append only).
@@ -298,7 +298,9 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         for (std::size_t i = 0; i < ns; ++i)
             factors[i] = trusted_support(sup[i]) ? Scalar(1) : params.untrusted_weight;
         const PUField tfield = params.untrusted_weight == 1 ? field : field.reweighted(std::move(factors));
-        const std::vector<Scalar> fc = tfield.values(centers);
+        // The paper's sign (> 0 inside) from here on: f_pu, f, the graph and the labels.
+        std::vector<Scalar> fc = tfield.values(centers);
+        for (Scalar& v : fc) v = -v;
         progress.check();
         std::vector<Index> trusted;
         for (std::size_t i = 0; i < ns; ++i)
@@ -407,7 +409,8 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
 ///
 /// Steps (every one of the paper): (1) octree to max_level with 2:1 balance;
 /// (2) cover of the bounding cube by support balls with linear fits, radius by
-/// bisection to the error ε, seeded random order; (3) the PU field f (> 0 inside);
+/// bisection to the error ε, seeded random order; (3) the PU field f (the paper's f is
+/// > 0 inside; PUField gives -f, kintsugi's sign);
 /// (4) regular triangulation of the support centres weighted by (s r_i)² (CGAL; with
 /// the paper's s = 1 hidden supports drop out; see triangulation_weight_scale for the
 /// default s = 0) plus an outer layer of points forced outside; (5) graph with

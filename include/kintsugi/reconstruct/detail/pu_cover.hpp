@@ -13,6 +13,7 @@
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/field/partition_of_unity.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 #include <kintsugi/spatial/octree.hpp>
 
@@ -25,19 +26,6 @@
 
 namespace kintsugi::detail {
 
-/// Quadratic B-spline b2 of eq. (5).
-[[nodiscard]] inline Scalar pu_b2(Scalar d) {
-    if (d >= Scalar(1.5)) return 0;
-    if (d >= Scalar(0.5)) return (Scalar(1.5) - d) * (Scalar(1.5) - d) / 2;
-    return Scalar(0.75) - d * d;
-}
-/// Derivative of pu_b2.
-[[nodiscard]] inline Scalar pu_b2_derivative(Scalar d) {
-    if (d >= Scalar(1.5)) return 0;
-    if (d >= Scalar(0.5)) return d - Scalar(1.5);
-    return -2 * d;
-}
-
 /// One support in the normalised frame: g(x) = m·(x - d) on the open ball (c, r).
 struct PUSupportData {
     Vec3 c = Vec3::Zero();
@@ -49,7 +37,6 @@ struct PUSupportData {
     /// (a surface patch), about 1/sqrt(count) when they point anywhere (outliers).
     Scalar coherence = 0;
     std::uint32_t level = 0; ///< level of the octree cell the centre came from
-    Index cell = 0;          ///< that cell
     bool fallback = false;   ///< no usable fit: tangent plane of the nearest input point
 };
 
@@ -86,7 +73,7 @@ inline PUFitState pu_fit(const PUCoverInput& in, const Vec3& c, Scalar r, const 
     Vec3 sn = Vec3::Zero(), sp = Vec3::Zero();
     const Scalar inv = Scalar(1.5) / r;
     for (std::size_t j = 0; j < k; ++j) {
-        const Scalar w = pu_b2(dist[j] * inv);
+        const Scalar w = b2_weight(dist[j] * inv);
         sw += w;
         sn += w * N[idx[j]];
         sp += w * P[idx[j]];
@@ -122,7 +109,6 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     PUSupportData out;
     out.c = oct.cell_center(cell);
     out.level = oct.cell(cell).level;
-    out.cell = cell;
     const Scalar r_min = Scalar(0.75) * oct.cell_diagonal(cell);
     // A ball of this radius around any point of the cube holds the whole cube.
     const Scalar r_cap = std::max(r_min, Scalar(2) * std::sqrt(Scalar(3)) * oct.cube_side());
@@ -200,17 +186,6 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     return out;
 }
 
-/// Whether all 8 corners of cell `cell` lie strictly inside the ball (c, r).
-inline bool pu_cell_inside_ball(const Octree& oct, Index cell, const Vec3& c, Scalar r) {
-    const Vec3 lo = oct.cell_min(cell), hi = oct.cell_max(cell);
-    Scalar far2 = 0;
-    for (int k = 0; k < 3; ++k) {
-        const Scalar a = std::max(std::abs(c[k] - lo[k]), std::abs(c[k] - hi[k]));
-        far2 += a * a;
-    }
-    return far2 < r * r;
-}
-
 /// Squared distance from c to the farthest point of the box [lo, hi].
 inline Scalar pu_box_far_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) {
     Scalar d2 = 0;
@@ -219,25 +194,6 @@ inline Scalar pu_box_far_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) 
         d2 += a * a;
     }
     return d2;
-}
-
-/// Octree node classification against the open ball (c, r): 0 disjoint, 2 box
-/// strictly inside, 1 otherwise.
-inline int pu_classify_box(const Vec3& c, Scalar r2, const Vec3& lo, const Vec3& hi);
-
-/// Squared distance from c to the box [lo, hi].
-inline Scalar pu_box_distance_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) {
-    Scalar d2 = 0;
-    for (int k = 0; k < 3; ++k) {
-        const Scalar t = c[k] < lo[k] ? lo[k] - c[k] : (c[k] > hi[k] ? c[k] - hi[k] : Scalar(0));
-        d2 += t * t;
-    }
-    return d2;
-}
-
-inline int pu_classify_box(const Vec3& c, Scalar r2, const Vec3& lo, const Vec3& hi) {
-    if (!(pu_box_distance_squared(c, lo, hi) < r2)) return 0;
-    return pu_box_far_squared(c, lo, hi) < r2 ? 2 : 1;
 }
 
 /// The seeded random order of the candidates (Fisher-Yates on mt19937_64, whose
@@ -369,11 +325,11 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             int last_class = 0;
             // visit(c) comes right after classify on c's own box or on a node holding c
             // (Octree::visit_cells_sparse), so last_class == 2 says that c has its 8 corners
-            // in the ball: the same test as pu_cell_inside_ball, on the same numbers.
+            // in the ball (the farthest corner closer than r).
             oct.visit_cells_sparse(
                 s.c - Vec3::Constant(r_in), s.c + Vec3::Constant(r_in),
                 [&](const Vec3& lo, const Vec3& hi) {
-                    if (!(pu_box_distance_squared(s.c, lo, hi) < r_in2)) return last_class = 0;
+                    if (!(box_squared_distance(s.c, lo, hi) < r_in2)) return last_class = 0;
                     return last_class = (pu_box_far_squared(s.c, lo, hi) < r2 ? 2 : 1);
                 },
                 [&](Index c) {

@@ -14,6 +14,7 @@
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/field/edge_root.hpp>
 #include <kintsugi/graph/st_cut.hpp>
 #include <kintsugi/mesh/fair.hpp>
 #include <kintsugi/mesh/marching_tetrahedra.hpp>
@@ -50,7 +51,6 @@ struct PUTetMesh {
     std::vector<Tet> tets;                     ///< positively oriented
     std::vector<std::array<Index, 2>> edges;   ///< unique, a < b
     std::vector<Index> site;                   ///< per vertex: input site index
-    std::size_t hidden = 0;                    ///< input sites that vanished (hidden)
 };
 
 /// Regular triangulation of weighted sites (centre, weight = radius²) with CGAL.
@@ -96,7 +96,6 @@ inline PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::v
     std::sort(alive.begin(), alive.end());
     std::vector<Index> vertex_of(n, std::numeric_limits<Index>::max());
     for (Index k = 0; k < alive.size(); ++k) vertex_of[alive[k]] = k;
-    out.hidden = n - alive.size();
     out.site = alive;
     out.vertices.resize(alive.size());
     for (Index k = 0; k < alive.size(); ++k) out.vertices[k] = centers[alive[k]];
@@ -255,12 +254,14 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
 
 /// Step 6, vertex placement on the field itself: the paper puts the vertex of a mixed
 /// edge where f(x) = 0. Marching tetrahedra interpolates f linearly between the two
-/// ends; here the zero is found on the PU field along the edge: f is sampled at
-/// `samples` + 1 points from the inside end, the first + to - change is bracketed and
-/// refined by the Illinois (regula falsi) method. Edges on which f never changes sign
-/// keep the same-sign placement. The parameter stays in [min_fraction, 1 - min_fraction]
-/// (no coincident vertices). `field(x)` must be thread-safe. Returns the number of
-/// vertices whose edge turned out to have a sign change after all.
+/// ends; here the zero is found on the PU field along the edge by find_edge_root
+/// (field/edge_root.hpp): `samples` + 1 samples from the inside end, the first inside
+/// to outside change refined by the Illinois method; NaN counts as 0. Edges on which f
+/// never changes sign keep the same-sign placement. The parameter stays in
+/// [min_fraction, 1 - min_fraction] (no coincident vertices). `field(x)` (kintsugi's
+/// sign, < 0 inside) must be thread-safe; `f` holds the paper's values (> 0 inside) at
+/// the tet vertices. Returns the number of vertices whose edge turned out to have a
+/// sign change after all.
 template <class Field>
 std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_vertices,
                               const std::vector<Scalar>& f, MarchingTetrahedraResult& mt, Scalar min_fraction,
@@ -268,6 +269,7 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
     const std::size_t n = mt.mesh.vertices.size();
     std::vector<std::uint8_t> found(n, 0);
     const std::size_t block = 4096;
+    const EdgeRootParams rp{.samples = samples};
     for (std::size_t b0 = 0; b0 < n; b0 += 16 * block) {
         progress.update(static_cast<double>(b0) / static_cast<double>(std::max<std::size_t>(n, 1)));
         const std::size_t b1 = std::min(n, b0 + 16 * block);
@@ -278,51 +280,14 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
             if (a == b) return;
             const Vec3& pa = tet_vertices[a];
             const Vec3 d = tet_vertices[b] - pa;
-            auto eval = [&](Scalar t) {
-                if (t <= 0) return f[a];
-                if (t >= 1) return f[b];
+            const auto root = find_edge_root([&](Scalar t) {
+                if (t <= 0) return -f[a];
+                if (t >= 1) return -f[b];
                 const Scalar v = field(Vec3(pa + t * d));
                 return std::isnan(v) ? Scalar(0) : v;
-            };
-            Scalar t0 = 0, f0 = eval(0);
-            bool bracket = false;
-            Scalar t1 = 0, f1 = 0;
-            for (int k = 1; k <= samples; ++k) {
-                const Scalar t = static_cast<Scalar>(k) / samples;
-                const Scalar ft = eval(t);
-                if (f0 > 0 && ft <= 0) {
-                    t1 = t;
-                    f1 = ft;
-                    bracket = true;
-                    break;
-                }
-                t0 = t;
-                f0 = ft;
-            }
-            if (!bracket) return;
-            // Illinois: regula falsi with halving of the stale end's value.
-            int side = 0;
-            for (int it = 0; it < 30 && t1 - t0 > Scalar(1e-9); ++it) {
-                const Scalar t = f0 == f1 ? (t0 + t1) / 2 : t0 + f0 * (t1 - t0) / (f0 - f1);
-                const Scalar ft = eval(t);
-                if (ft > 0) {
-                    t0 = t;
-                    f0 = ft;
-                    if (side == -1) f1 /= 2;
-                    side = -1;
-                } else if (ft < 0) {
-                    t1 = t;
-                    f1 = ft;
-                    if (side == 1) f0 /= 2;
-                    side = 1;
-                } else {
-                    t0 = t1 = t;
-                    break;
-                }
-            }
-            const Scalar t = std::clamp(f0 == f1 ? (t0 + t1) / 2 : t0 + f0 * (t1 - t0) / (f0 - f1), min_fraction,
-                                        1 - min_fraction);
-            mt.mesh.vertices[i] = pa + t * d;
+            }, rp);
+            if (!root) return;
+            mt.mesh.vertices[i] = pa + std::clamp(*root, min_fraction, 1 - min_fraction) * d;
             found[i] = 1;
         }, 256);
     }
