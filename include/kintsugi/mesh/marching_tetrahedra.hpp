@@ -23,7 +23,8 @@
 /// three vertices lie on three distinct edges of one non-degenerate tet, or on a
 /// boundary triangle, and are never collinear).
 ///
-/// Used by the PU + graph-cut reconstruction (kintsugi/reconstruct/pu_graphcut.hpp).
+/// Used by the PU + graph-cut reconstruction (kintsugi/reconstruct/pu_graphcut.hpp);
+/// its per-tet case table also serves extract_isosurface (kintsugi/field/isosurface.hpp).
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/control.hpp>
@@ -107,6 +108,46 @@ inline std::array<int, 4> even_permutation(int first, int second = -1) {
         if (v != first && v != second) p[k++] = v;
     if (permutation_parity(p) != 0) std::swap(p[2], p[3]);
     return p;
+}
+
+/// The surface triangles of one tet with `nin` (1, 2 or 3) inside vertices, V in
+/// positive order (orient3d(V0, V1, V2, V3) > 0), facing from inside to outside.
+/// edge_vertex(a, b) gives the output vertex on tet edge (a, b) (called in a fixed
+/// order: the caller's numbering depends on it); add_face(a, b, c) takes a triangle;
+/// sq(u, w) is the squared distance of two output vertices (a quad is split along its
+/// shorter diagonal). Shared by marching_tetrahedra and extract_isosurface.
+template <class IsIn, class EdgeVertex, class AddFace, class Sq>
+void mt_tet_faces(const std::array<Index, 4>& V, int nin, IsIn&& is_in, EdgeVertex&& edge_vertex, AddFace&& add_face,
+                  Sq&& sq) {
+    if (nin == 1 || nin == 3) {
+        int iso = 0;
+        for (int l = 0; l < 4; ++l)
+            if (is_in(V[l]) == (nin == 1)) iso = l;
+        const auto p = even_permutation(iso);
+        const Index q1 = edge_vertex(V[p[0]], V[p[1]]);
+        const Index q2 = edge_vertex(V[p[0]], V[p[2]]);
+        const Index q3 = edge_vertex(V[p[0]], V[p[3]]);
+        // (q1, q2, q3) faces away from V(p[0]).
+        if (nin == 1) add_face(q1, q2, q3);
+        else add_face(q1, q3, q2);
+    } else {
+        int a = -1, b = -1;
+        for (int l = 0; l < 4; ++l)
+            if (is_in(V[l])) (a < 0 ? a : b) = l;
+        const auto p = even_permutation(a, b);
+        // With (i, j, k, l) even and i, j inside: the outward cycle is (ik, il, jl, jk).
+        const Index q0 = edge_vertex(V[p[0]], V[p[2]]);
+        const Index q1 = edge_vertex(V[p[0]], V[p[3]]);
+        const Index q2 = edge_vertex(V[p[1]], V[p[3]]);
+        const Index q3 = edge_vertex(V[p[1]], V[p[2]]);
+        if (sq(q0, q2) <= sq(q1, q3)) {
+            add_face(q0, q1, q2);
+            add_face(q0, q2, q3);
+        } else {
+            add_face(q0, q1, q3);
+            add_face(q1, q2, q3);
+        }
+    }
 }
 
 inline MarchingTetrahedraResult marching_tetrahedra_impl(const std::vector<Vec3>& vertices,
@@ -195,37 +236,8 @@ inline MarchingTetrahedraResult marching_tetrahedra_impl(const std::vector<Vec3>
             faces.push_back({k, t, l});
         }
         if (nin == 4) continue;
-        // local vertex ids in positive order
-        auto V = [&](int local) { return T[o[local]]; };
-        if (nin == 1 || nin == 3) {
-            int iso = 0;
-            for (int l = 0; l < 4; ++l)
-                if (is_in(V(l)) == (nin == 1)) iso = l;
-            const auto p = even_permutation(iso);
-            const Index q1 = edge_vertex(V(p[0]), V(p[1]));
-            const Index q2 = edge_vertex(V(p[0]), V(p[2]));
-            const Index q3 = edge_vertex(V(p[0]), V(p[3]));
-            // (q1, q2, q3) faces away from V(p[0]).
-            if (nin == 1) add_face(q1, q2, q3);
-            else add_face(q1, q3, q2);
-        } else {
-            int a = -1, b = -1;
-            for (int l = 0; l < 4; ++l)
-                if (is_in(V(l))) (a < 0 ? a : b) = l;
-            const auto p = even_permutation(a, b);
-            // With (i, j, k, l) even and i, j inside: the outward cycle is (ik, il, jl, jk).
-            const Index q0 = edge_vertex(V(p[0]), V(p[2]));
-            const Index q1 = edge_vertex(V(p[0]), V(p[3]));
-            const Index q2 = edge_vertex(V(p[1]), V(p[3]));
-            const Index q3 = edge_vertex(V(p[1]), V(p[2]));
-            if (sq(q0, q2) <= sq(q1, q3)) {
-                add_face(q0, q1, q2);
-                add_face(q0, q2, q3);
-            } else {
-                add_face(q0, q1, q3);
-                add_face(q1, q2, q3);
-            }
-        }
+        // vertex ids in positive order
+        mt_tet_faces({T[o[0]], T[o[1]], T[o[2]], T[o[3]]}, nin, is_in, edge_vertex, add_face, sq);
     }
     progress.update(0.5);
 
