@@ -255,29 +255,25 @@ private:
         f.h = std::sqrt(h2);
         Scalar sw = 0, spn = 0, spp = 0;
         Vec3 sp = Vec3::Zero(), sn = Vec3::Zero();
-        for (const Neighbor& nb : nn) {
-            const Scalar t = h2 > 0 ? 1 - nb.squared_distance / h2 : 1;
-            if (t <= 0) continue;
-            const Scalar w = t * t;
-            const Vec3 p = tree_.point(nb.index) - x;
-            const Vec3& nrm = normals_[nb.index];
-            sw += w;
-            sp += w * p;
-            sn += w * nrm;
-            spn += w * p.dot(nrm);
-            spp += w * p.squaredNorm();
-        }
-        if (!(sw > 0)) {  // every neighbour at the support's edge (all equidistant): equal weights
+        auto accumulate = [&](bool uniform) {
             for (const Neighbor& nb : nn) {
+                Scalar w = 1;
+                if (!uniform) {
+                    const Scalar t = h2 > 0 ? 1 - nb.squared_distance / h2 : 1;
+                    if (t <= 0) continue;
+                    w = t * t;
+                }
                 const Vec3 p = tree_.point(nb.index) - x;
                 const Vec3& nrm = normals_[nb.index];
-                sw += 1;
-                sp += p;
-                sn += nrm;
-                spn += p.dot(nrm);
-                spp += p.squaredNorm();
+                sw += w;
+                sp += w * p;
+                sn += w * nrm;
+                spn += w * p.dot(nrm);
+                spp += w * p.squaredNorm();
             }
-        }
+        };
+        accumulate(false);
+        if (!(sw > 0)) accumulate(true);  // every neighbour at the support's edge (all equidistant)
         const Scalar inv = 1 / sw;
         Scalar uq = 0;
         if (params_.fit == PointSetSurfaceFit::apss) {

@@ -120,8 +120,58 @@ std::vector<PrincipalCurvature> fit_all(std::size_t n, Progress& progress, Fit&&
     return out;
 }
 
-inline std::size_t count_invalid(const std::vector<PrincipalCurvature>& c) {
-    return static_cast<std::size_t>(std::count_if(c.begin(), c.end(), [](const auto& x) { return !x.valid; }));
+/// Runs `body(progress)` (which returns the curvatures) under the RunControl: timings,
+/// the invalid count, and Status::cancelled with no curvatures when cancelled.
+template <class Body>
+CurvatureResult run_guarded(const CurvatureParams& params, Body&& body) {
+    CurvatureResult result;
+    detail::Progress progress(params.control);
+    try {
+        result.curvatures = body(progress);
+        result.timings = progress.finish();
+    } catch (const detail::cancelled_exception&) {
+        result.status = Status::cancelled;
+        result.curvatures.clear();
+        return result;
+    }
+    result.invalid = static_cast<std::size_t>(
+        std::count_if(result.curvatures.begin(), result.curvatures.end(), [](const auto& x) { return !x.valid; }));
+    return result;
+}
+
+/// Jet fits from the k nearest samples: at every sample (queries == nullptr; the
+/// sample itself is the fit's origin) or at every query point (the jet centred there).
+/// Oriented along the sample's (or the nearest sample's) normal when there are normals.
+inline CurvatureResult knn_fits(std::vector<Vec3> pts, const std::vector<Vec3>* queries,
+                                const std::vector<Vec3>& normals, const CurvatureParams& params) {
+    return run_guarded(params, [&](Progress& progress) {
+        progress.stage("neighbours", 0.0, 0.1);
+        const KdTree tree(std::move(pts));
+        progress.stage("fit", 0.1, 1.0);
+        const std::size_t k = params.k;
+        const int degree = params.degree;
+        const std::size_t n = queries ? queries->size() : tree.size();
+        return fit_all(n, progress, [&](std::size_t i) {
+            thread_local std::vector<Neighbor> nn;
+            const Vec3& x = queries ? (*queries)[i] : tree.point(i);
+            tree.knn(x, k, nn);
+            auto get = [&](std::size_t j) -> const Vec3& { return tree.point(nn[j].index); };
+            JetFit jf;
+            if (queries) {
+                jf = fit_jet(get, nn.size(), x, degree, true);
+            } else {
+                // The point itself first (a duplicate may precede it in the kNN order).
+                for (std::size_t j = 0; j < nn.size(); ++j)
+                    if (nn[j].index == i) {
+                        std::swap(nn[0], nn[j]);
+                        break;
+                    }
+                jf = fit_jet(get, nn.size(), degree, true);
+            }
+            if (!normals.empty()) orient_jet(jf, normals[nn.front().index]);
+            return to_principal(jf);
+        });
+    });
 }
 
 }  // namespace detail::curvature
@@ -142,37 +192,7 @@ template <PointSet P>
     constexpr const char* fn = "kintsugi::estimate_curvatures";
     std::vector<Vec3> pts = gather_points(points);
     detail::curvature::validate(fn, pts, params, "point set");
-    const std::vector<Vec3> normals = gather_normals(points);
-    CurvatureResult result;
-    detail::Progress progress(params.control);
-    try {
-        progress.stage("neighbours", 0.0, 0.1);
-        const KdTree tree(std::move(pts));
-        progress.stage("fit", 0.1, 1.0);
-        const std::size_t k = params.k;
-        const int degree = params.degree;
-        result.curvatures = detail::curvature::fit_all(tree.size(), progress, [&](std::size_t i) {
-            thread_local std::vector<Neighbor> nn;
-            tree.knn(tree.point(i), k, nn);
-            // The point itself first (a duplicate may precede it in the kNN order).
-            for (std::size_t j = 0; j < nn.size(); ++j)
-                if (nn[j].index == i) {
-                    std::swap(nn[0], nn[j]);
-                    break;
-                }
-            JetFit jf = detail::fit_jet([&](std::size_t j) -> const Vec3& { return tree.point(nn[j].index); },
-                                        nn.size(), degree, true);
-            if (!normals.empty()) orient_jet(jf, normals[i]);
-            return detail::curvature::to_principal(jf);
-        });
-        result.timings = progress.finish();
-    } catch (const detail::cancelled_exception&) {
-        result.status = Status::cancelled;
-        result.curvatures.clear();
-        return result;
-    }
-    result.invalid = detail::curvature::count_invalid(result.curvatures);
-    return result;
+    return detail::curvature::knn_fits(std::move(pts), nullptr, gather_normals(points), params);
 }
 
 /// @brief Principal curvatures and directions of the surface sampled by `samples`, at
@@ -196,31 +216,7 @@ template <PointSet P, PointSet Q>
         if (!q[i].allFinite())
             throw invalid_input(std::string(fn) + ": query point " + std::to_string(i) +
                                 " has a NaN or infinite coordinate; remove it first");
-    const std::vector<Vec3> normals = gather_normals(samples);
-    CurvatureResult result;
-    detail::Progress progress(params.control);
-    try {
-        progress.stage("neighbours", 0.0, 0.1);
-        const KdTree tree(std::move(pts));
-        progress.stage("fit", 0.1, 1.0);
-        const std::size_t k = params.k;
-        const int degree = params.degree;
-        result.curvatures = detail::curvature::fit_all(q.size(), progress, [&](std::size_t i) {
-            thread_local std::vector<Neighbor> nn;
-            tree.knn(q[i], k, nn);
-            JetFit jf = detail::fit_jet([&](std::size_t j) -> const Vec3& { return tree.point(nn[j].index); },
-                                        nn.size(), q[i], degree, true);
-            if (!normals.empty()) orient_jet(jf, normals[nn.front().index]);
-            return detail::curvature::to_principal(jf);
-        });
-        result.timings = progress.finish();
-    } catch (const detail::cancelled_exception&) {
-        result.status = Status::cancelled;
-        result.curvatures.clear();
-        return result;
-    }
-    result.invalid = detail::curvature::count_invalid(result.curvatures);
-    return result;
+    return detail::curvature::knn_fits(std::move(pts), &q, gather_normals(samples), params);
 }
 
 /// @brief Principal curvatures and directions at every vertex of a triangle mesh, from
@@ -242,9 +238,7 @@ template <TriangleMesh M>
     detail::curvature::validate(fn, m.vertices, params, "mesh");
     if (params.rings == 0) throw invalid_input(std::string(fn) + ": params.rings is 0; pass at least 1 (default 2)");
     detail::check_face_indices(m, fn);
-    CurvatureResult result;
-    detail::Progress progress(params.control);
-    try {
+    return detail::curvature::run_guarded(params, [&](detail::Progress& progress) {
         progress.stage("neighbours", 0.0, 0.1);
         const MeshTopology topo(m.vertices.size(), m.faces);
         const std::vector<Vec3> vn = vertex_normals(m);
@@ -252,7 +246,7 @@ template <TriangleMesh M>
         const std::size_t k = params.k, rings = params.rings;
         const int degree = params.degree;
         const std::vector<Vec3>& pos = m.vertices;
-        result.curvatures = detail::curvature::fit_all(pos.size(), progress, [&](std::size_t v) {
+        return detail::curvature::fit_all(pos.size(), progress, [&](std::size_t v) {
             if (topo.vertex_neighbors(v).empty()) return PrincipalCurvature{};
             // Breadth-first rings around v (v first), until `rings` rings and k vertices.
             thread_local std::vector<Index> ring;
@@ -276,14 +270,7 @@ template <TriangleMesh M>
             orient_jet(jf, vn[v]);
             return detail::curvature::to_principal(jf);
         });
-        result.timings = progress.finish();
-    } catch (const detail::cancelled_exception&) {
-        result.status = Status::cancelled;
-        result.curvatures.clear();
-        return result;
-    }
-    result.invalid = detail::curvature::count_invalid(result.curvatures);
-    return result;
+    });
 }
 
 }  // namespace kintsugi
