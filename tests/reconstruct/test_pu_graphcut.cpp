@@ -20,10 +20,13 @@
 
 #include <CGAL/Simple_cartesian.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <random>
 #include <stop_token>
 #include <string>
 #include <vector>
@@ -86,6 +89,8 @@ TEST_CASE("reconstruct_pu_graphcut: sphere with 10 % outliers -> one closed genu
     CHECK(r.graph_nodes == r.supports - r.hidden_supports + r.outer_vertices);
     CHECK(r.graph_edges > r.graph_nodes);
     CHECK(r.cut_value > 0);
+    CHECK(r.parts == 1);
+    CHECK(r.far_points == 0);
     CHECK(r.smoothed_vertices > 0);
     CHECK(r.smoothed_vertices <= r.mesh.vertices.size());
     std::vector<std::string> stages;
@@ -454,4 +459,214 @@ TEST_CASE("reconstruct_pu_graphcut: real mesh — bunny00 sampled with noise, 3 
     const auto dp = ks::compare(rp.mesh, ref, {.samples = 100000});
     MESSAGE("bunny00 with the paper's field: hausdorff " << dp.relative(dp.a_to_b).hausdorff);
     CHECK(dp.relative(dp.a_to_b).hausdorff > 0.01);
+}
+
+namespace {
+/// Mean of | |v / scale - centre| - 1 | over the vertices (distance to the unit sphere
+/// at `centre`, in the sphere's units; overflow-free for any scale).
+double sphere_deviation(const std::vector<ks::Vec3>& vs, double scale, const ks::Vec3& centre = ks::Vec3::Zero()) {
+    double sum = 0;
+    for (const auto& v : vs) sum += std::abs((v / scale - centre).norm() - 1);
+    return vs.empty() ? 1e9 : sum / static_cast<double>(vs.size());
+}
+}  // namespace
+
+TEST_CASE("reconstruct_pu_graphcut: far outliers are left out; far-apart objects each get their own box") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{0}, 2000, 0.001, 0.0, 1, pts, nrm);
+    const auto alone = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+    REQUIRE(alone.status == ks::Status::ok);
+    check_guarantee(alone.mesh);
+    CHECK(alone.parts == 1);
+    CHECK(alone.far_points == 0);
+    MESSAGE("sphere, 2,000 points: " << alone.mesh.vertices.size() << " vertices, deviation "
+                                     << sphere_deviation(alone.mesh.vertices, 1));
+    CHECK(sphere_deviation(alone.mesh.vertices, 1) < 0.01);
+    // One point 3, 1,000 or 1e9 units away: it used to decide the octree's cube (1,000:
+    // a 38-vertex blob reported closed; 1e9: "all points are collinear"). It is now left
+    // out and the sphere is the sphere reconstructed alone, bit for bit.
+    for (const double d : {3.0, 1000.0, 1e9}) {
+        CAPTURE(d);
+        auto p = pts, n = nrm;
+        p.emplace_back(d, 0.5, 0.0);
+        n.emplace_back(1, 0, 0);
+        const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(p, n));
+        REQUIRE(r.status == ks::Status::ok);
+        CHECK(r.far_points == 1);
+        CHECK(r.parts == 1);
+        CHECK(r.points == 2001);
+        CHECK(r.mesh.faces == alone.mesh.faces);
+        CHECK(r.mesh.vertices == alone.mesh.vertices);
+    }
+    // Two spheres 1,000 apart (a mesh with 0 vertices before): both reconstructed, each
+    // as if alone; a handful of far points around them are left out.
+    auto p = pts, n = nrm;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        p.push_back(pts[i] + ks::Vec3(1000, 0, 0));
+        n.push_back(nrm[i]);
+    }
+    for (int k = 0; k < 5; ++k) {
+        p.emplace_back(500.0 + 50 * k, -300.0, 40.0 * k);
+        n.emplace_back(0, 0, 1);
+    }
+    const auto two = ks::reconstruct_pu_graphcut(ks::with_normals(p, n));
+    REQUIRE(two.status == ks::Status::ok);
+    const auto rep = check_guarantee(two.mesh);
+    CHECK(rep.components == 2);
+    CHECK(rep.genus == 0);
+    CHECK(two.parts == 2);
+    CHECK(two.far_points == 5);
+    std::vector<ks::Vec3> left, right;
+    for (const auto& v : two.mesh.vertices) (v.x() < 500 ? left : right).push_back(v);
+    CHECK(left == alone.mesh.vertices);  // the first part is the sphere's points, unchanged
+    CHECK(std::abs(static_cast<double>(right.size()) / static_cast<double>(left.size()) - 1) < 0.02);
+    CHECK(sphere_deviation(left, 1) < 0.01);
+    CHECK(sphere_deviation(right, 1, ks::Vec3(1000, 0, 0)) < 0.01);
+    std::vector<std::string> stages;
+    for (const auto& t : two.timings) stages.push_back(t.stage);
+    CHECK(stages == std::vector<std::string>{"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
+                                             "marching_tetrahedra", "smoothing"});
+    // One box for everything (the paper's rule, part_gap_fraction = 0): each sphere fits
+    // in one cell of the cube, no support is labelled inside, and the empty surface is an
+    // error naming the reason and the fix, not an exit with 0 vertices.
+    CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(p, n), {.part_gap_fraction = 0}),
+                         doctest::Contains("the surface is empty"), ks::invalid_input);
+    // Only scattered clusters too small to be objects: an error, not an empty mesh.
+    std::vector<ks::Vec3> specks, speck_n;
+    for (int c = 0; c < 6; ++c)
+        for (int k = 0; k < 5; ++k) {
+            specks.emplace_back(std::pow(10.0, c + 1) + (k & 1), 0.3 * k, 0.2 * (k >> 1));
+            speck_n.emplace_back(0, 0, 1);
+        }
+    CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(specks, speck_n)),
+                         doctest::Contains("no part of the input can be reconstructed"), ks::invalid_input);
+    // bad values of the two parameters
+    CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.part_gap_fraction = -1}),
+                         doctest::Contains("part_gap_fraction"), ks::invalid_input);
+    CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(
+                             ks::with_normals(pts, nrm), {.min_part_fraction = std::numeric_limits<double>::quiet_NaN()}),
+                         doctest::Contains("min_part_fraction"), ks::invalid_input);
+}
+
+TEST_CASE("pu_separated_parts: empty slabs wider than the fraction of the box split, recursively") {
+    std::mt19937_64 rng(3);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<ks::Vec3> pts;
+    for (int i = 0; i < 20000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
+    // a connected blob: one part (the linear pre-check decides it)
+    auto parts = ks::detail::pu_separated_parts(pts, 0.25);
+    REQUIRE(parts.size() == 1);
+    CHECK(parts[0].size() == pts.size());
+    // a geometric sequence of far points along x, +y and -z: each peels off alone; the
+    // work stays proportional to the part moved (O(n log^2 n)), not to n per split
+    const std::size_t cube = pts.size();
+    for (int k = 2; k < 600; ++k) pts.emplace_back(std::ldexp(1.0, k), 0.5, 0.5);
+    for (int k = 2; k < 300; ++k) pts.emplace_back(0.5, std::ldexp(1.0, k), -std::ldexp(1.0, k));
+    pts.emplace_back(-1.7e308, 1.7e308, 0.0);  // no overflow of the gaps or the box
+    parts = ks::detail::pu_separated_parts(pts, 0.25);
+    REQUIRE(parts.size() == pts.size() - cube + 1);
+    CHECK(parts[0].size() == cube);
+    CHECK(parts[0].back() == cube - 1);
+    for (std::size_t k = 1; k < parts.size(); ++k) {
+        REQUIRE(parts[k].size() == 1);
+        CHECK(parts[k][0] == cube + k - 1);
+    }
+    // 0 disables; a gap of 1/5 of the box is kept at 0.25 and split at 0.15
+    CHECK(ks::detail::pu_separated_parts(pts, 0).size() == 1);
+    std::vector<ks::Vec3> two;
+    for (int i = 0; i < 1000; ++i) two.emplace_back(2 * u(rng) + (i % 2 ? 3.0 : 0.0), u(rng), u(rng));
+    CHECK(ks::detail::pu_separated_parts(two, 0.25).size() == 1);
+    parts = ks::detail::pu_separated_parts(two, 0.15);
+    REQUIRE(parts.size() == 2);
+    CHECK(parts[0].size() == 500);
+    CHECK(parts[0][0] == 0);
+    CHECK(parts[1][0] == 1);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: finite coordinates of any magnitude give the same surface up to scale") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{0}, 2000, 0.001, 0.1, 1, pts, nrm);
+    const auto ref = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+    REQUIRE(ref.status == ks::Status::ok);
+    const auto nv = static_cast<double>(ref.mesh.vertices.size());
+    const double dev = sphere_deviation(ref.mesh.vertices, 1);
+    MESSAGE("scale 1: " << nv << " vertices, deviation " << dev);
+    // Before: above ~1.4e154 squared distances overflowed ("all points coincide", and a
+    // crash in the normal estimation); 1e-200 gave "all points coincide" and tiny
+    // normals "zero length".
+    for (const double s : {1e-300, 1e-200, 1e-20, 1e20, 1e154, 1e200, 1e300}) {
+        for (const bool scale_normals : {false, true}) {
+            CAPTURE(s);
+            CAPTURE(scale_normals);
+            auto p = pts, n = nrm;
+            for (auto& x : p) x *= s;
+            if (scale_normals)
+                for (auto& x : n) x *= s;
+            const auto p0 = p;
+            const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(p, n));
+            REQUIRE(r.status == ks::Status::ok);
+            auto unit = r.mesh;  // in the sphere's units: the volume s^3 of the check would overflow
+            for (auto& v : unit.vertices) v /= s;
+            CHECK(check_guarantee(unit).components == 1);
+            CHECK(std::abs(static_cast<double>(r.mesh.vertices.size()) - nv) <= 0.01 * nv);
+            CHECK(sphere_deviation(r.mesh.vertices, s) == doctest::Approx(dev).epsilon(0.05));
+            for (const auto& v : r.mesh.vertices) REQUIRE(v.allFinite());
+            CHECK(p == p0);
+        }
+    }
+    // Far from the origin relative to the size: a unit sphere at 1e12 (recentred frame).
+    auto p = pts;
+    for (auto& x : p) x += ks::Vec3(1e12, -1e12, 3e12);
+    const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(p, nrm));
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK(sphere_deviation(r.mesh.vertices, 1, ks::Vec3(1e12, -1e12, 3e12)) < 2 * dev + 1e-3);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: progress moves through the triangulation, and a stop there cancels") {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(Shape{1}, 20000, 0.001, 0.1, 4, pts, nrm);
+    const auto pts0 = pts, nrm0 = nrm;
+    // Between 35 % and 70 % (the triangulation) the callback used to be called once, at
+    // the start of the stage, for any input under 32,768 supports.
+    std::vector<double> inside;
+    ks::PUGraphcutParams p;
+    p.control.progress = [&](const ks::ProgressEvent& e) {
+        if (e.stage == "triangulation" && e.fraction > 0.35 && e.fraction < 0.7) inside.push_back(e.fraction);
+        return true;
+    };
+    const auto full = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), p);
+    REQUIRE(full.status == ks::Status::ok);
+    MESSAGE("progress events inside the triangulation: " << inside.size());
+    CHECK(inside.size() >= 10);
+    CHECK(std::is_sorted(inside.begin(), inside.end()));
+    REQUIRE(!inside.empty());
+    CHECK(inside.back() > 0.6);
+    // Cancelled halfway through the insertion, through the callback and through the
+    // stop token (polled every 1,024 insertions).
+    for (const bool by_token : {false, true}) {
+        CAPTURE(by_token);
+        std::stop_source stop;
+        double at = -1;
+        ks::PUGraphcutParams q;
+        q.control.stop = stop.get_token();
+        q.control.progress = [&](const ks::ProgressEvent& e) {
+            if (e.stage == "triangulation" && e.fraction > 0.5 && at < 0) {
+                at = e.fraction;
+                if (by_token) stop.request_stop();
+                return by_token;
+            }
+            CHECK(at < 0);  // no event after the stop
+            return true;
+        };
+        ks::IndexedMesh out;
+        out.vertices = {ks::Vec3(1, 2, 3)};
+        const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), out, q);
+        CHECK(at > 0.5);
+        CHECK(at < 0.7);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(r.mesh.faces.empty());
+        CHECK(out.vertices.size() == 1);
+        CHECK(pts == pts0);
+        CHECK(nrm == nrm0);
+    }
 }

@@ -25,6 +25,7 @@
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/reconstruct/detail/pu_graphcut_steps.hpp>
+#include <kintsugi/reconstruct/detail/pu_parts.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
@@ -142,6 +143,23 @@ struct PUGraphcutParams {
     /// unsupported: 3,000 points on the torus at level 6 fill 41 % of the vertices, max
     /// 1.38 -> 0.83 %, mean 0.086 -> 0.108 %.
     Scalar fill_radius_fraction = 0.75;
+    /// Separated parts, in [0, 1]; 0 disables (one octree cube around every point, the
+    /// paper). The points are split, recursively, at every empty slab (a gap between
+    /// consecutive coordinates along x, y or z) wider than this fraction of the longest
+    /// side of their box; each part is reconstructed in its own cube (max_level and
+    /// epsilon apply to each part), and parts too small to be an object
+    /// (min_part_fraction) are left out as far outliers. A connected object projects
+    /// onto every axis without a gap, so only separate objects, far outliers, or a band
+    /// of missing data wider than a quarter of the object are split; a far point can
+    /// then enlarge the cube by a third at most. With one cube for everything, a
+    /// point 1,000 units from a sphere of radius 1 (2,000 points) made the cube 500x
+    /// too large (a 38-vertex blob), and two spheres 1,000 apart gave an empty mesh.
+    Scalar part_gap_fraction = 0.25;
+    /// A separated part (part_gap_fraction) holding fewer points than this fraction
+    /// of the input, or fewer than min_support_points, is left out: its points are far
+    /// outliers (PUGraphcutResult::far_points). In [0, 1]; 1 % by default: a cluster
+    /// of a few stray points is not an object, and one surface needs several supports.
+    Scalar min_part_fraction = 0.01;
 };
 
 /// Result of reconstruct_pu_graphcut.
@@ -167,8 +185,15 @@ struct PUGraphcutResult {
     std::size_t removed_regions = 0;     ///< small inside regions / cavities relabelled
     std::size_t filled_vertices = 0;     ///< mesh vertices placed by the thin-plate fill
     /// Per stage, in order: pu_octree, pu_cover, pu_index, triangulation, graph_cut,
-    /// marching_tetrahedra, smoothing.
+    /// marching_tetrahedra, smoothing (summed over the parts).
     std::vector<StageTiming> timings;
+    /// Input points left out of the surface: in separated parts (see
+    /// PUGraphcutParams::part_gap_fraction) too small to be an object, spanning no
+    /// volume (coplanar or collinear), or enclosing nothing. 0 for one object.
+    std::size_t far_points = 0;
+    /// Separated parts reconstructed, each in its own octree cube (1 for one object).
+    /// The counts above are summed over them.
+    std::size_t parts = 0;
 };
 
 namespace detail {
@@ -203,18 +228,68 @@ inline void pu_graphcut_validate(const std::vector<Vec3>& pts, const std::vector
     if (!(p.fill_radius_fraction >= 0 && p.fill_radius_fraction <= 1))
         throw invalid_input(fn + "fill_radius_fraction = " + std::to_string(p.fill_radius_fraction) +
                             " must lie in [0, 1]; the default is 0.75, 0 disables the fill");
+    if (!(p.part_gap_fraction >= 0 && p.part_gap_fraction <= 1))
+        throw invalid_input(fn + "part_gap_fraction = " + std::to_string(p.part_gap_fraction) +
+                            " must lie in [0, 1]; the default is 0.25, 0 reconstructs every point in one box");
+    if (!(p.min_part_fraction >= 0 && p.min_part_fraction <= 1))
+        throw invalid_input(fn + "min_part_fraction = " + std::to_string(p.min_part_fraction) +
+                            " must lie in [0, 1]; the default is 0.01");
+    // The checks of PUField::build that do not depend on the points' spread (that one
+    // runs per part, in the part's frame: pu_graphcut_validate_part).
+    if (p.max_level < 1 || p.max_level > 12)
+        throw invalid_input(fn + "max_level = " + std::to_string(p.max_level) + " is outside [1, 12]; the paper uses 8 or 9");
+    if (!(p.epsilon > 0) || !std::isfinite(p.epsilon))
+        throw invalid_input(fn + "epsilon = " + std::to_string(p.epsilon) +
+                            " must be positive and finite (a fraction of the longest bounding-box side, e.g. 4e-3)");
+    if (pts.size() < 4) throw invalid_input(fn + "needs at least 4 points, got " + std::to_string(pts.size()));
+    if (nrm.size() != pts.size())
+        throw invalid_input(fn + "the points have no normals (or not one per point); estimate oriented normals first "
+                            "(kintsugi::estimate_normals)");
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        if (!pts[i].allFinite())
+            throw invalid_input(fn + "point " + std::to_string(i) + " has a NaN or infinite coordinate; remove it first");
+        if (!nrm[i].allFinite())
+            throw invalid_input(fn + "the normal of point " + std::to_string(i) +
+                                " has a NaN or infinite component; fix or re-estimate the normals");
+        if (!(nrm[i].cwiseAbs().maxCoeff() > 0))  // not squaredNorm: 1e-200 is a direction too
+            throw invalid_input(fn + "the normal of point " + std::to_string(i) +
+                                " has zero length; fix or re-estimate the normals");
+    }
+}
+
+/// PUField::build's check of one part (in its frame): "" when it passes, else the
+/// message naming reconstruct_pu_graphcut (coincident, collinear or coplanar points).
+inline std::string pu_graphcut_validate_part(const std::vector<Vec3>& pts, const std::vector<Vec3>& nrm,
+                                             const PUGraphcutParams& p) {
     try {
         pu_validate(pts, nrm, PUFieldParams{.max_level = p.max_level, .epsilon = p.epsilon});
     } catch (const invalid_input& e) {
         std::string msg = e.what();
         const std::string from = "kintsugi::PUField::build: ";
-        if (msg.rfind(from, 0) == 0) msg = fn + msg.substr(from.size());
-        throw invalid_input(msg);
+        if (msg.rfind(from, 0) == 0) msg = "kintsugi::reconstruct_pu_graphcut: " + msg.substr(from.size());
+        return msg;
     }
+    return {};
 }
 
-inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3> nrm, const PUGraphcutParams& params) {
-    pu_graphcut_validate(pts, nrm, params);
+/// Forwards a part's progress into [a, b] of the whole run, at most once per 1 % of
+/// the run (`last`: the last fraction forwarded); the parts' own "done" is dropped.
+inline RunControl part_control(const RunControl& outer, double a, double b, double& last) {
+    RunControl c;
+    c.stop = outer.stop;
+    if (outer.progress)
+        c.progress = [&outer, a, b, &last](const ProgressEvent& e) {
+            const double f = a + (b - a) * e.fraction;
+            if (e.stage == "done" || f < last + 0.01) return true;
+            last = f;
+            return outer.progress(ProgressEvent{e.stage, f});
+        };
+    return c;
+}
+
+/// Steps 1-7 on one part (validated, in its frame).
+inline PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vector<Vec3> nrm, const PUGraphcutParams& params,
+                                         const RunControl& control) {
     PUGraphcutResult res;
     res.points = pts.size();
     // Fractions of the overall progress per stage (measured on the 100K bunny).
@@ -226,7 +301,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
                                                          .epsilon = params.epsilon,
                                                          .seed = params.seed,
                                                          .inward_normals = params.normals == NormalConvention::inward,
-                                                         .control = sub_control(params.control, 0.0, pu_end)});
+                                                         .control = sub_control(control, 0.0, pu_end)});
     if (pu.status == Status::cancelled) {
         res.status = Status::cancelled;
         return res;
@@ -237,7 +312,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
     const PUField& field = pu.field;
     const auto& sup = field.supports();
 
-    Progress progress(params.control);
+    Progress progress(control);
     try {
         // Step 4: regular triangulation of the supports (weights (s r)²) plus an outer layer
         // of plain points on a box enclosing every support ball: never hidden (no ball
@@ -261,7 +336,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
             sites.push_back(p);
             radii.push_back(0);
         }
-        const PUTetMesh tm = regular_tet_mesh(sites, radii, progress, 0.0, 1.0);
+        const PUTetMesh tm = regular_tet_mesh(sites, radii, progress, 0.0, 0.8);
         const std::size_t nv = tm.vertices.size();
         // Vertices are numbered by increasing site index, so the surviving supports come
         // first (vertex v < alive_supports is support tm.site[v]) and the outer layer last.
@@ -301,7 +376,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         // The paper's sign (> 0 inside) from here on: f_pu, f, the graph and the labels.
         std::vector<Scalar> fc = tfield.values(centers);
         for (Scalar& v : fc) v = -v;
-        progress.check();
+        progress.update(0.9);
         std::vector<Index> trusted;
         for (std::size_t i = 0; i < ns; ++i)
             if (trusted_support(sup[i])) trusted.push_back(i);
@@ -339,9 +414,9 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         progress.stage("graph_cut", tri_end, cut_end);
         std::vector<std::uint8_t> inside;
         if (params.labeling == Labeling::graphcut) {
-            inside = graphcut_labels(tm, f_pu, f, is_outer, params.k, res.cut_value, params.control);
+            inside = graphcut_labels(tm, f_pu, f, is_outer, params.k, res.cut_value, control);
             if (params.min_region_fraction > 0)
-                res.removed_regions = remove_small_regions(tm, is_outer, inside, params.min_region_fraction);
+                res.removed_regions = remove_small_regions(tm, is_outer, inside, params.min_region_fraction, control.stop);
         } else {
             // PU alone: the sign of the field (outer layer outside).
             inside.resize(nv);
@@ -357,7 +432,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         progress.stage("marching_tetrahedra", cut_end, mt_end);
         MarchingTetrahedraParams mp;
         mp.tets_positively_oriented = true;
-        mp.control.stop = params.control.stop;
+        mp.control.stop = control.stop;
         MarchingTetrahedraResult mt = marching_tetrahedra(tm.vertices, tm.tets, inside, f_pu, mp);
         if (mt.status == Status::cancelled) throw cancelled_exception{};
         (void)place_on_zero_set(tfield, tm.vertices, f_pu, mt, mp.min_edge_fraction, 8, progress);
@@ -378,11 +453,13 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         // fill_radius_fraction x r_i from the centre of every trusted support.
         std::vector<std::uint8_t> unsupported(mt.mesh.vertices.size(), 0);
         if (params.fill_radius_fraction > 0)
-            mark_unsupported(mt.mesh.vertices, sup, trusted, params.fill_radius_fraction, unsupported);
+            mark_unsupported(mt.mesh.vertices, sup, trusted, params.fill_radius_fraction, unsupported, control.stop);
         // The fill first (from the placed vertices around it), then the selective
         // smoothing of the other movable vertices, which sees the filled positions.
         const MeshTopology topo(mt.mesh.vertices.size(), mt.mesh.faces);
+        progress.check();
         res.filled_vertices = biharmonic_fill(mt.mesh.vertices, topo, unsupported);
+        progress.check();
         for (std::size_t i = 0; i < movable.size(); ++i) movable[i] = movable[i] && !unsupported[i];
         if (params.smoothing_iterations > 0) {
             TaubinParams tp;
@@ -398,6 +475,132 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         c.status = Status::cancelled;
         return c;
     }
+    return res;
+}
+
+/// The whole run: validation, the separated parts (part_gap_fraction), each
+/// reconstructed in its own frame (PUFrame: the caller's coordinates when safe, else
+/// recentred and scaled by a power of two) and mapped back, the meshes concatenated.
+inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3> nrm, const PUGraphcutParams& params) {
+    pu_graphcut_validate(pts, nrm, params);
+    const std::string fn = "kintsugi::reconstruct_pu_graphcut: ";
+    const std::size_t n = pts.size();
+    std::vector<std::vector<Index>> groups = pu_separated_parts(pts, params.part_gap_fraction);
+    const std::size_t min_points = std::max<std::size_t>(
+        {static_cast<std::size_t>(std::ceil(params.min_part_fraction * static_cast<Scalar>(n))),
+         params.min_support_points, 4});
+    std::vector<std::size_t> chosen;
+    for (std::size_t g = 0; g < groups.size(); ++g)
+        if (groups.size() == 1 || groups[g].size() >= min_points) chosen.push_back(g);
+    if (chosen.empty())
+        throw invalid_input(fn + "no part of the input can be reconstructed: the points fall into " +
+                            std::to_string(groups.size()) + " groups separated by empty space (gaps wider than " +
+                            "part_gap_fraction = " + std::to_string(params.part_gap_fraction) +
+                            " of their extent) and none holds " + std::to_string(min_points) +
+                            " points or more (min_part_fraction of the input, at least min_support_points); "
+                            "remove the scattered points, or set part_gap_fraction = 0 to reconstruct them in one box");
+    std::size_t total = 0;
+    for (const std::size_t g : chosen) total += groups[g].size();
+
+    PUGraphcutResult res;
+    res.points = n;
+    res.far_points = n - total;
+    std::string problem;  // why the last part left out gave nothing
+    std::size_t done = 0;
+    double last = -1;
+    for (const std::size_t g : chosen) {
+        const std::vector<Index>& ids = groups[g];
+        const double a = static_cast<double>(done) / static_cast<double>(total);
+        done += ids.size();
+        const double b = static_cast<double>(done) / static_cast<double>(total);
+        const PUFrame frame = PUFrame::of(pts, ids);
+        std::vector<Vec3> pp, nn;
+        if (ids.size() == n) {
+            pp = std::move(pts);
+            nn = std::move(nrm);
+        } else {
+            pp.reserve(ids.size());
+            nn.reserve(ids.size());
+            for (const Index i : ids) {
+                pp.push_back(pts[i]);
+                nn.push_back(nrm[i]);
+            }
+        }
+        if (!frame.identity)
+            for (Vec3& x : pp) x = frame.to_frame(x);
+        pu_safe_normals(nn);
+        if (std::string bad = pu_graphcut_validate_part(pp, nn, params); !bad.empty()) {
+            if (chosen.size() == 1) {
+                if (res.far_points > 0)
+                    bad += " (" + std::to_string(res.far_points) + " points far from the others were left out)";
+                throw invalid_input(bad);
+            }
+            problem = bad;
+            res.far_points += ids.size();
+            continue;
+        }
+        const RunControl control = chosen.size() == 1 ? params.control : part_control(params.control, a, b, last);
+        PUGraphcutResult r = pu_graphcut_part(std::move(pp), std::move(nn), params, control);
+        if (r.status == Status::cancelled) {
+            PUGraphcutResult c;
+            c.status = Status::cancelled;
+            return c;
+        }
+        if (r.mesh.faces.empty()) {
+            problem = fn + "the surface is empty: the labelling put none of the " + std::to_string(r.supports) +
+                      " supports inside, so the points do not enclose a volume at this resolution; check that the "
+                      "normals point out of the object (or set normals = NormalConvention::inward), or raise "
+                      "max_level / lower epsilon";
+            res.far_points += ids.size();
+            continue;
+        }
+        for (Vec3& v : r.mesh.vertices) {
+            v = frame.from_frame(v);
+            if (!v.allFinite())
+                throw invalid_input(fn + "the surface reaches beyond the largest finite double (the points lie too "
+                                         "close to it); scale the points down first");
+        }
+        const Index base = res.mesh.vertices.size();
+        res.mesh.vertices.insert(res.mesh.vertices.end(), r.mesh.vertices.begin(), r.mesh.vertices.end());
+        for (auto f : r.mesh.faces) {
+            for (auto& v : f) v += base;
+            res.mesh.faces.push_back(f);
+        }
+        ++res.parts;
+        res.octree_cells += r.octree_cells;
+        res.supports += r.supports;
+        res.hidden_supports += r.hidden_supports;
+        res.outer_vertices += r.outer_vertices;
+        res.tetrahedra += r.tetrahedra;
+        res.graph_nodes += r.graph_nodes;
+        res.graph_edges += r.graph_edges;
+        res.cut_value += r.cut_value;
+        res.inside_vertices += r.inside_vertices;
+        res.sign_disagreements += r.sign_disagreements;
+        res.same_sign_vertices += r.same_sign_vertices;
+        res.smoothed_vertices += r.smoothed_vertices;
+        res.removed_regions += r.removed_regions;
+        res.filled_vertices += r.filled_vertices;
+        for (const StageTiming& t : r.timings) {
+            auto it = std::find_if(res.timings.begin(), res.timings.end(),
+                                   [&](const StageTiming& u) { return u.stage == t.stage; });
+            if (it == res.timings.end()) res.timings.push_back(t);
+            else it->seconds += t.seconds;
+        }
+    }
+    if (res.mesh.faces.empty()) {
+        if (groups.size() > 1)
+            problem += " (the points fall into " + std::to_string(groups.size()) +
+                       " parts separated by empty space; " + std::to_string(chosen.size()) + " hold " +
+                       std::to_string(min_points) + " points or more and none of them gave a surface)";
+        throw invalid_input(problem);
+    }
+    if (chosen.size() > 1 && params.control.progress && !params.control.progress(ProgressEvent{"done", 1.0})) {
+        PUGraphcutResult c;
+        c.status = Status::cancelled;
+        return c;
+    }
+    res.status = Status::ok;
     return res;
 }
 

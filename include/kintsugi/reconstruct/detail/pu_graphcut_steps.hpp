@@ -40,6 +40,7 @@
 #include <cstdint>
 #include <limits>
 #include <numeric>
+#include <stop_token>
 #include <utility>
 #include <vector>
 
@@ -75,16 +76,46 @@ inline PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::v
     CGAL::spatial_sort(order.begin(), order.end(),
                        CGAL::Spatial_sort_traits_adapter_3<K, Pmap>(CGAL::make_property_map(std::as_const(pts))));
     RT rt;
+    // Insertion in chunks of 2^15 sites, each in CGAL's own order for a range
+    // (Regular_triangulation_3::insert_with_info, sequential: a spatial sort of the
+    // chunk, then locate + insert from the previous vertex's cell), written out here so
+    // that progress is reported and the stop token polled every 1024 insertions. The
+    // triangulation depends on this order where sites are cospherical (octree cell
+    // centres are), so it is the order of a plain rt.insert(chunk) and the chunks
+    // stay 2^15: the output is the same as with one insert call per chunk.
     const std::size_t chunk = 1 << 15;
-    std::vector<std::pair<WP, Index>> batch;
+    std::vector<WP> wps;
+    std::vector<K::Point_3> bare;
+    std::vector<std::size_t> idx;
     for (std::size_t b = 0; b < n; b += chunk) {
-        progress.update(p0 + (p1 - p0) * 0.9 * static_cast<double>(b) / static_cast<double>(n));
-        batch.clear();
-        for (std::size_t j = b; j < std::min(n, b + chunk); ++j) {
+        const std::size_t m = std::min(n, b + chunk) - b;
+        wps.clear();
+        bare.clear();
+        for (std::size_t j = b; j < b + m; ++j) {
             const Index i = order[j];
-            batch.emplace_back(WP(pts[i], radii[i] * radii[i]), i);
+            wps.emplace_back(pts[i], radii[i] * radii[i]);
+            bare.push_back(pts[i]);
         }
-        rt.insert(batch.begin(), batch.end());
+        idx.resize(m);
+        std::iota(idx.begin(), idx.end(), std::size_t{0});
+        CGAL::spatial_sort(idx.begin(), idx.end(),
+                           CGAL::Spatial_sort_traits_adapter_3<K, Pmap>(CGAL::make_property_map(std::as_const(bare))));
+        typename RT::Cell_handle hint;
+        for (std::size_t k = 0; k < m; ++k) {
+            if ((k & 1023) == 0)
+                progress.update(p0 + (p1 - p0) * 0.85 * static_cast<double>(b + k) / static_cast<double>(n));
+            const WP& p = wps[idx[k]];
+            typename RT::Locate_type lt;
+            int li = 0, lj = 0;
+            const typename RT::Cell_handle c = rt.locate(p, lt, li, lj, hint);
+            const typename RT::Vertex_handle v = rt.insert(p, lt, c, li, lj);
+            if (v != typename RT::Vertex_handle()) {
+                v->info() = order[b + idx[k]];
+                hint = v->cell();
+            } else {
+                hint = c;
+            }
+        }
     }
     progress.check();
 
@@ -99,6 +130,7 @@ inline PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::v
     out.site = alive;
     out.vertices.resize(alive.size());
     for (Index k = 0; k < alive.size(); ++k) out.vertices[k] = centers[alive[k]];
+    progress.update(p0 + (p1 - p0) * 0.9);
     out.tets.reserve(rt.number_of_finite_cells());
     for (auto c : rt.finite_cell_handles())
         out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
@@ -111,6 +143,7 @@ inline PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::v
         out.edges.push_back({a, b});
     }
     std::sort(out.edges.begin(), out.edges.end());
+    progress.update(p0 + (p1 - p0) * 0.95);
     // Tets sorted too: the output mesh then depends only on the triangulation itself.
     for (auto& t : out.tets) {
         // rotate to the smallest index first keeping orientation (even permutations)
@@ -156,6 +189,7 @@ inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std:
     std::vector<Scalar> len_sum(nv, 0);
     std::vector<std::uint32_t> deg(nv, 0);
     for (std::size_t e = 0; e < tm.edges.size(); ++e) {
+        if ((e & 0xFFFF) == 0 && control.stop.stop_requested()) throw cancelled_exception{};
         const auto [a, b] = tm.edges[e];
         const Scalar len = (tm.vertices[a] - tm.vertices[b]).norm();
         len_sum[a] += len;
@@ -193,7 +227,8 @@ inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std:
 /// sets of outside vertices not connected to the outer layer (cavities) with fewer
 /// than that become inside. Returns the number of regions relabelled.
 inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<std::uint8_t>& forced_out,
-                                        std::vector<std::uint8_t>& inside, Scalar fraction) {
+                                        std::vector<std::uint8_t>& inside, Scalar fraction,
+                                        const std::stop_token& stop = {}) {
     const std::size_t nv = tm.vertices.size();
     std::vector<std::size_t> off(nv + 1, 0);
     for (const auto& e : tm.edges) {
@@ -215,6 +250,7 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
     std::vector<std::uint8_t> label, touches_outer;
     std::vector<Index> stack;
     for (std::size_t s = 0; s < nv; ++s) {
+        if ((s & 0xFFFF) == 0 && stop.stop_requested()) throw cancelled_exception{};
         if (region[s] != none) continue;
         const std::size_t id = size.size();
         size.push_back(0);
@@ -306,7 +342,8 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
 /// listed in `ids`. The supports are searched in bands of radii within a factor 2, so a
 /// query meets only supports of one size at a time.
 inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSupport>& sup,
-                             const std::vector<Index>& ids, Scalar fraction, std::vector<std::uint8_t>& out) {
+                             const std::vector<Index>& ids, Scalar fraction, std::vector<std::uint8_t>& out,
+                             const std::stop_token& stop = {}) {
     out.assign(x.size(), 1);
     if (ids.empty() || !(fraction > 0)) return;
     // Band b holds the radii in [2^b, 2^(b+1)).
@@ -317,6 +354,7 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
     std::sort(by_band.begin(), by_band.end());
     std::size_t b0 = 0;
     while (b0 < by_band.size()) {
+        if (stop.stop_requested()) throw cancelled_exception{};
         std::size_t b1 = b0;
         while (b1 < by_band.size() && by_band[b1].first == by_band[b0].first) ++b1;
         std::vector<Vec3> centres;
