@@ -130,12 +130,13 @@ public:
     ///
     /// Each loop follows the directed boundary half-edges: for a boundary edge whose
     /// face runs a -> b, the boundary half-edge runs b -> a (CGAL's border half-edge),
-    /// so a face (loop[i+1], loop[i], x) fills the hole with the orientation of its
-    /// neighbours. Where the orientation is inconsistent (or the surface
-    /// non-orientable, e.g. a Moebius strip) the walk continues along the undirected
-    /// boundary. Loops are simple: where boundaries meet at a vertex (two holes
-    /// touching, a bow-tie), the closed walk is split at the repeated vertex, so loops
-    /// touching at a vertex are reported separately. Every boundary edge is in exactly
+    /// so the face along the loop runs loop[i+1] -> loop[i] and a face
+    /// (loop[i], loop[i+1], x) fills the hole with the orientation of its neighbours.
+    /// Where the orientation is inconsistent (or the surface non-orientable, e.g. a
+    /// Moebius strip) the walk continues along the undirected boundary. Loops are
+    /// simple: where boundaries meet at a vertex (two holes touching, a bow-tie), the
+    /// closed walk is split at the repeated vertex, so loops touching at a vertex are
+    /// reported separately. Every boundary edge is in exactly
     /// one loop. Where non-manifold edges leave a vertex with an odd number of
     /// boundary edges, a piece cannot close: it is reported as an open chain that
     /// lists its last vertex too.

@@ -1,0 +1,456 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file holes.hpp
+/// @brief Holes of a triangle mesh: its boundary loops with their length, area and
+/// extent, the rule that tells the outer border of an open scan from a hole, and the
+/// thin-plate hole fill (triangulate, refine to the surrounding density, fair).
+///
+/// @code
+/// auto loops = kintsugi::find_boundary_loops(mesh);          // any TriangleMesh
+/// std::vector<std::vector<kintsugi::Index>> holes;
+/// for (const auto& l : loops.loops) if (!l.outer) holes.push_back(l.vertices);
+/// auto r = kintsugi::fill_holes(mesh, holes);                // any TopologyMutableMesh
+/// @endcode
+
+#include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/core/concepts.hpp>
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/error.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/fair.hpp>
+#include <kintsugi/mesh/halfedge_mesh.hpp>
+#include <kintsugi/mesh/topology.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace kintsugi {
+
+/// One boundary loop of a mesh.
+struct BoundaryLoop {
+    /// The loop's vertices, in the direction of MeshTopology::boundary_loops(): the
+    /// faces along the loop run vertices[i+1] -> vertices[i], so a face
+    /// (vertices[i], vertices[i+1], x) fills the hole with its neighbours' orientation.
+    std::vector<Index> vertices;
+    Scalar length = 0;   ///< sum of its edge lengths
+    /// Area of the loop projected on the plane where that area is largest: the norm of
+    /// the vector area ½ Σ p_i × p_{i+1} (exact for a planar loop; a lower bound of the
+    /// area of any patch that fills it).
+    Scalar area = 0;
+    Vec3 normal = Vec3::Zero();  ///< unit vector area (the hole's mean normal); zero if area is 0
+    Scalar extent = 0;           ///< diagonal of the loop's bounding box
+    Index component = 0;         ///< connected component (of faces sharing a vertex) it bounds
+    bool outer = false;          ///< the outer border of an open scan (see HoleParams)
+};
+
+/// Parameters of find_boundary_loops.
+struct HoleParams {
+    /// Outer-border rule. In each connected component, the loop with the largest extent
+    /// (bounding-box diagonal; the longest loop on ties) is the component's outer border
+    /// when its extent is at least this fraction of the component's bounding-box
+    /// diagonal; every other loop is a hole. Range [0, inf), default 0.75; above 1 no
+    /// loop is ever outer (a closed object with holes). Why 0.75: the border of a scanned
+    /// patch spans nearly its whole box (grid 1.0, hemisphere rim 0.94), a hole in a
+    /// closed object less (the cap z > 0.8 cut from a unit sphere: 0.51).
+    Scalar outer_border_extent = 0.75;
+};
+
+/// Result of find_boundary_loops.
+struct BoundaryLoops {
+    std::vector<BoundaryLoop> loops;  ///< in the order of MeshTopology::boundary_loops()
+    std::size_t components = 0;       ///< connected components of faces
+    /// Indices into loops of the holes (the loops that are not outer), increasing.
+    [[nodiscard]] std::vector<Index> holes() const {
+        std::vector<Index> h;
+        for (Index i = 0; i < loops.size(); ++i)
+            if (!loops[i].outer) h.push_back(i);
+        return h;
+    }
+};
+
+/// @brief Boundary loops of any triangle mesh with their length, projected area, extent,
+/// and the outer-border rule of HoleParams.
+/// @tparam M a TriangleMesh (IndexedMesh, Eigen V/F view, CGAL::Surface_mesh, ...).
+/// @param mesh   any combinatorics (see MeshTopology::boundary_loops for non-manifold cases)
+/// @param params the outer-border rule
+/// @throws invalid_input for a face index out of range, a NaN/Inf coordinate or
+///         outer_border_extent < 0 / NaN.
+template <TriangleMesh M>
+[[nodiscard]] BoundaryLoops find_boundary_loops(const M& mesh, const HoleParams& params = {}) {
+    const std::string fn = "kintsugi::find_boundary_loops: ";
+    if (!(params.outer_border_extent >= 0))
+        throw invalid_input(fn + "outer_border_extent = " + std::to_string(params.outer_border_extent) +
+                            " must be >= 0 (default 0.75; above 1 disables the outer border)");
+    const std::size_t nv = num_vertices(mesh);
+    std::vector<Vec3> x(nv);
+    for (Index v = 0; v < nv; ++v) {
+        x[v] = vertex_position(mesh, v);
+        if (!x[v].allFinite())
+            throw invalid_input(fn + "vertex " + std::to_string(v) + " has a NaN or infinite coordinate; remove it");
+    }
+    const MeshTopology topo(mesh);
+    // Components of faces sharing a vertex (union-find over vertices).
+    std::vector<Index> parent(nv);
+    std::iota(parent.begin(), parent.end(), Index{0});
+    auto find = [&](Index a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    for (const Face& f : topo.faces())
+        for (int k = 1; k < 3; ++k) {
+            const Index a = find(f[0]), b = find(f[static_cast<std::size_t>(k)]);
+            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+        }
+    std::vector<Index> comp(nv, HalfedgeMesh::invalid);
+    BoundaryLoops out;
+    std::vector<BoundingBox> boxes;
+    for (const Face& f : topo.faces())
+        for (const Index v : f) {
+            const Index r = find(v);
+            if (comp[r] == HalfedgeMesh::invalid) {
+                comp[r] = out.components++;
+                boxes.emplace_back();
+            }
+            comp[v] = comp[r];
+            boxes[comp[v]].extend(x[v]);
+        }
+    for (auto& lv : topo.boundary_loops()) {
+        BoundaryLoop l;
+        BoundingBox box;
+        Vec3 va = Vec3::Zero();
+        for (std::size_t i = 0; i < lv.size(); ++i) {
+            const Vec3& p = x[lv[i]];
+            const Vec3& q = x[lv[(i + 1) % lv.size()]];
+            l.length += (q - p).norm();
+            va += p.cross(q) / 2;
+            box.extend(p);
+        }
+        l.area = va.norm();
+        if (l.area > 0) l.normal = va / l.area;
+        l.extent = box.diagonal();
+        l.component = comp[lv[0]];
+        l.vertices = std::move(lv);
+        out.loops.push_back(std::move(l));
+    }
+    for (Index c = 0; c < out.components; ++c) {
+        Index best = HalfedgeMesh::invalid;
+        for (Index i = 0; i < out.loops.size(); ++i) {
+            const auto& l = out.loops[i];
+            if (l.component != c) continue;
+            if (best == HalfedgeMesh::invalid || l.extent > out.loops[best].extent ||
+                (l.extent == out.loops[best].extent && l.length > out.loops[best].length))
+                best = i;
+        }
+        if (best != HalfedgeMesh::invalid &&
+            out.loops[best].extent >= params.outer_border_extent * boxes[c].diagonal())
+            out.loops[best].outer = true;
+    }
+    return out;
+}
+
+/// Parameters of fill_holes.
+struct FillParams {
+    /// Refinement: a patch edge longer than this factor times the hole's target length
+    /// is split, in [1, 4], default 4/3 (the usual isotropic-remeshing bound: edges end
+    /// between 2/3 and 4/3 of the target). The target length of a hole is the mean
+    /// length of the mesh edges at its loop's vertices (the surrounding density).
+    Scalar split_factor = Scalar(4) / 3;
+    /// Largest number of split-and-flip rounds, >= 1 (default 30: each round halves the
+    /// longest patch edges, 30 reaches a 10^9 ratio of hole size to density).
+    std::size_t max_rounds = 30;
+    /// false: keep the refined, flat (minimal-area) patch, skip the thin-plate fairing.
+    bool fair = true;
+    /// Pull of the new vertices to their unfaired positions in the fairing (FairParams::delta).
+    Scalar fair_delta = 1e-8;
+    RunControl control{};
+};
+
+/// Result of fill_holes.
+struct FillResult {
+    Status status = Status::ok;
+    std::size_t filled_holes = 0;          ///< loops closed
+    std::vector<Index> unfilled_holes;     ///< indices into the given loops that could not be
+                                           ///< triangulated without a duplicate edge
+    std::size_t new_vertices = 0;          ///< appended after the existing vertices
+    std::size_t new_faces = 0;             ///< appended after the existing faces
+    std::vector<StageTiming> timings;      ///< triangulate, refine, fair, write
+};
+
+namespace detail {
+
+/// Minimum-area triangulation of a closed polygon (Barequet and Sharir 1995; the first
+/// step of Liepa 2003), O(n^3) time, O(n^2) memory, by dynamic programming over the
+/// sub-polygons. A chord (i, j) for which forbidden(i, j) holds is never used (an edge
+/// already in the mesh). Returns triangles (i, k, j), i < k < j, in loop indices; empty
+/// when no triangulation avoids the forbidden chords.
+template <class Forbidden>
+std::vector<std::array<Index, 3>> min_area_triangulation(const std::vector<Vec3>& p, Forbidden forbidden,
+                                                         Progress& progress) {
+    const std::size_t n = p.size();
+    constexpr Scalar inf = std::numeric_limits<Scalar>::infinity();
+    std::vector<Scalar> w(n * n, inf);
+    std::vector<Index> arg(n * n, 0);
+    for (Index i = 0; i + 1 < n; ++i) w[i * n + i + 1] = 0;
+    std::vector<std::uint8_t> ok(n * n, 1);
+    for (Index i = 0; i < n; ++i)
+        for (Index j = i + 2; j < n; ++j)
+            if (!(i == 0 && j == n - 1) && forbidden(i, j)) ok[i * n + j] = 0;
+    for (Index len = 2; len < n; ++len) {
+        progress.update(static_cast<double>(len) / static_cast<double>(n));
+        for (Index i = 0; i + len < n; ++i) {
+            const Index j = i + len;
+            if (!ok[i * n + j]) continue;
+            Scalar best = inf;
+            Index bk = 0;
+            for (Index k = i + 1; k < j; ++k) {
+                const Scalar c = w[i * n + k] + w[k * n + j];
+                if (!(c < inf)) continue;
+                const Scalar a = (p[k] - p[i]).cross(p[j] - p[i]).norm() / 2;
+                if (c + a < best) {
+                    best = c + a;
+                    bk = k;
+                }
+            }
+            w[i * n + j] = best;
+            arg[i * n + j] = bk;
+        }
+    }
+    std::vector<std::array<Index, 3>> tris;
+    if (!(w[n - 1] < inf)) return tris;
+    std::vector<std::pair<Index, Index>> stack{{0, n - 1}};
+    while (!stack.empty()) {
+        const auto [i, j] = stack.back();
+        stack.pop_back();
+        if (j < i + 2) continue;
+        const Index k = arg[i * n + j];
+        tris.push_back({i, k, j});
+        stack.emplace_back(i, k);
+        stack.emplace_back(k, j);
+    }
+    return tris;
+}
+
+/// Whether the edge of h is locally Delaunay: the angles opposite it sum to at most pi.
+inline bool is_locally_delaunay(const HalfedgeMesh& m, Index h) {
+    const Index g = m.twin(h);
+    if (g == HalfedgeMesh::invalid) return true;
+    auto angle = [&](Index e) {
+        const Vec3& o = m.position(m.opposite(e));
+        const Vec3 u = m.position(m.source(e)) - o, v = m.position(m.target(e)) - o;
+        return std::atan2(u.cross(v).norm(), u.dot(v));
+    };
+    return angle(h) + angle(g) <= Scalar(3.14159265358979323846) + Scalar(1e-12);
+}
+
+}  // namespace detail
+
+/// @brief Closes the given boundary loops with thin-plate patches (Liepa, "Filling holes
+/// in meshes", SGP 2003): minimum-area triangulation of each loop, refinement by edge
+/// splits and Delaunay flips until the patch edges are no longer than split_factor times
+/// the surrounding edge length, then the biharmonic fairing of the new vertices
+/// (fair_biharmonic, uniform weights), which continues the position and slope of the
+/// surface around the hole. The existing vertices and faces are not changed; the new
+/// ones are appended.
+///
+/// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). An
+///         IndexedMesh with normals receives normals for the new vertices (area-weighted).
+/// @param mesh   an oriented 2-manifold, possibly with boundary
+/// @param loops  loops to close, each as from find_boundary_loops (either direction):
+///               consecutive vertices joined by boundary edges
+/// @param params refinement, fairing, cancellation
+/// @throws invalid_input (mesh untouched) when the mesh is not an oriented manifold
+///         (naming the edge or vertex), a loop is shorter than 3 vertices, uses a vertex
+///         out of range, is not a boundary loop (naming the loop and the edge), a vertex is
+///         in two loops, or a parameter is out of range.
+/// @return Status::ok (a loop that cannot be triangulated without duplicating an
+///         existing edge is listed in unfilled_holes, the others are filled);
+///         Status::cancelled: the mesh is untouched.
+template <TopologyMutableMesh M>
+FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, const FillParams& params = {}) {
+    const std::string fn = "kintsugi::fill_holes: ";
+    if (!(params.split_factor >= 1 && params.split_factor <= 4))
+        throw invalid_input(fn + "split_factor = " + std::to_string(params.split_factor) +
+                            " must lie in [1, 4] (default 4/3)");
+    if (params.max_rounds < 1) throw invalid_input(fn + "max_rounds must be >= 1 (default 30)");
+    if (!(params.fair_delta >= 0) || !std::isfinite(params.fair_delta))
+        throw invalid_input(fn + "fair_delta must be finite and >= 0 (default 1e-8)");
+    const std::size_t nv0 = num_vertices(mesh), nf0 = num_faces(mesh);
+    std::vector<Face> faces(nf0);
+    for (Index f = 0; f < nf0; ++f) faces[f] = face_at(mesh, f);
+    std::vector<Vec3> pos(nv0);
+    for (Index v = 0; v < nv0; ++v) pos[v] = vertex_position(mesh, v);
+    HalfedgeMesh base;
+    try {
+        base = HalfedgeMesh::from_faces(pos, faces);
+    } catch (const invalid_input& e) {
+        throw invalid_input(fn + e.what());
+    }
+    // Check the loops and orient them: face (l[i+1], l[i], x) must close each edge.
+    std::vector<std::vector<Index>> oriented(loops.size());
+    std::vector<Index> in_loop(nv0, HalfedgeMesh::invalid);
+    for (Index li = 0; li < loops.size(); ++li) {
+        const auto& l = loops[li];
+        const std::string which = "loop " + std::to_string(li);
+        if (l.size() < 3)
+            throw invalid_input(fn + which + " has " + std::to_string(l.size()) +
+                                " vertices; a boundary loop has at least 3 (take them from find_boundary_loops)");
+        for (const Index v : l) {
+            if (v >= nv0)
+                throw invalid_input(fn + which + " uses vertex " + std::to_string(v) + " but the mesh has " +
+                                    std::to_string(nv0) + " vertices");
+            if (in_loop[v] != HalfedgeMesh::invalid)
+                throw invalid_input(fn + which + " passes vertex " + std::to_string(v) + " already in loop " +
+                                    std::to_string(in_loop[v]) + "; give each hole once, as a simple loop");
+            in_loop[v] = li;
+        }
+        bool forward = true, backward = true;
+        for (std::size_t i = 0; i < l.size(); ++i) {
+            const Index a = l[i], b = l[(i + 1) % l.size()];
+            const Index hb = base.find_halfedge(b, a), hf = base.find_halfedge(a, b);
+            forward = forward && hb != HalfedgeMesh::invalid && base.is_boundary_halfedge(hb);
+            backward = backward && hf != HalfedgeMesh::invalid && base.is_boundary_halfedge(hf);
+            if (!forward && !backward)
+                throw invalid_input(fn + which + ": vertices " + std::to_string(a) + " and " + std::to_string(b) +
+                                    " are not joined by a boundary edge; pass loops from find_boundary_loops");
+        }
+        oriented[li] = l;
+        if (!forward) std::reverse(oriented[li].begin(), oriented[li].end());
+    }
+
+    detail::Progress progress(params.control);
+    FillResult out;
+    std::vector<Face> new_faces;
+    std::vector<Vec3> new_pos;
+    try {
+        // 1. Triangulate every loop; target edge length from the edges at the loop.
+        progress.stage("triangulate", 0.0, 0.3);
+        std::vector<Scalar> target;
+        std::vector<Index> filled, patch_hole;
+        std::vector<Index> ring;
+        for (Index li = 0; li < oriented.size(); ++li) {
+            const auto& l = oriented[li];
+            std::vector<Vec3> p(l.size());
+            for (std::size_t i = 0; i < l.size(); ++i) p[i] = pos[l[i]];
+            auto forbidden = [&](Index i, Index j) {
+                return base.find_halfedge(l[i], l[j]) != HalfedgeMesh::invalid ||
+                       base.find_halfedge(l[j], l[i]) != HalfedgeMesh::invalid;
+            };
+            const auto tris = detail::min_area_triangulation(p, forbidden, progress);
+            if (tris.empty()) {
+                out.unfilled_holes.push_back(li);
+                continue;
+            }
+            for (const auto& t : tris) faces.push_back({l[t[0]], l[t[1]], l[t[2]]});
+            Scalar sum = 0;
+            std::size_t cnt = 0;
+            for (const Index v : l) {
+                base.vertex_ring(v, ring);
+                for (const Index u : ring) {
+                    sum += (pos[u] - pos[v]).norm();
+                    ++cnt;
+                }
+            }
+            target.push_back(cnt ? sum / static_cast<Scalar>(cnt) : 0);
+            filled.push_back(li);
+            patch_hole.insert(patch_hole.end(), tris.size(), filled.size() - 1);
+        }
+        // 2. Refine: split long patch edges, flip patch edges to Delaunay, until stable.
+        progress.stage("refine", 0.3, 0.7);
+        HalfedgeMesh hm = HalfedgeMesh::from_faces(pos, faces);
+        std::vector<Index> patch(nf0, HalfedgeMesh::invalid);  // per face: its hole (in filled), if a patch face
+        patch.insert(patch.end(), patch_hole.begin(), patch_hole.end());
+        auto interior_patch_edge = [&](Index h) {
+            const Index g = hm.twin(h);
+            return g != HalfedgeMesh::invalid && patch[HalfedgeMesh::face(h)] != HalfedgeMesh::invalid &&
+                   patch[HalfedgeMesh::face(g)] != HalfedgeMesh::invalid;
+        };
+        auto flip_pass = [&]() {
+            for (std::size_t sweep = 0; sweep < 100; ++sweep) {
+                bool any = false;
+                for (Index h = 3 * nf0; h < hm.halfedge_capacity(); ++h) {
+                    const Index g = hm.twin(h);
+                    if (g == HalfedgeMesh::invalid || g < h || !interior_patch_edge(h)) continue;
+                    if (!detail::is_locally_delaunay(hm, h) && hm.flip(h)) any = true;
+                }
+                progress.check();
+                if (!any) break;
+            }
+        };
+        flip_pass();
+        for (std::size_t round = 0; round < params.max_rounds; ++round) {
+            progress.update(static_cast<double>(round) / static_cast<double>(params.max_rounds));
+            bool split_any = false;
+            const Index end = hm.halfedge_capacity();
+            for (Index h = 3 * nf0; h < end; ++h) {
+                const Index g = hm.twin(h);
+                if (g == HalfedgeMesh::invalid || g < h || !interior_patch_edge(h)) continue;
+                const Scalar len = (hm.position(hm.target(h)) - hm.position(hm.source(h))).norm();
+                if (len <= params.split_factor * target[patch[HalfedgeMesh::face(h)]]) continue;
+                const Index hole = patch[HalfedgeMesh::face(h)];
+                hm.split(h, 0.5);
+                patch.resize(hm.face_capacity(), hole);
+                split_any = true;
+            }
+            if (!split_any) break;
+            flip_pass();
+        }
+        // 3. Fair the new vertices.
+        progress.stage("fair", 0.7, 0.95);
+        std::vector<Vec3> x(hm.vertex_capacity());
+        for (Index v = 0; v < x.size(); ++v) x[v] = hm.position(v);
+        std::vector<Face> all(hm.face_capacity());
+        for (Index f = 0; f < all.size(); ++f) all[f] = {hm.face_vertex(f, 0), hm.face_vertex(f, 1), hm.face_vertex(f, 2)};
+        if (params.fair && x.size() > nv0) {
+            std::vector<std::uint8_t> free(x.size(), 0);
+            std::fill(free.begin() + static_cast<std::ptrdiff_t>(nv0), free.end(), 1);
+            const MeshTopology topo(x.size(), all);
+            progress.check();
+            detail::biharmonic_fill(x, topo, free, params.fair_delta);
+        }
+        progress.check();
+        new_pos.assign(x.begin() + static_cast<std::ptrdiff_t>(nv0), x.end());
+        new_faces.assign(all.begin() + static_cast<std::ptrdiff_t>(nf0), all.end());
+        out.filled_holes = filled.size();
+        progress.stage("write", 0.95, 1.0);
+        out.timings = progress.finish();
+    } catch (const detail::cancelled_exception&) {
+        return FillResult{Status::cancelled, 0, {}, 0, 0, {}};
+    }
+    // 4. Append (the existing vertices and faces are untouched).
+    if constexpr (requires { mesh_traits<M>::reserve(mesh, std::size_t{}, std::size_t{}); })
+        mesh_traits<M>::reserve(mesh, nv0 + new_pos.size(), nf0 + new_faces.size());
+    for (const Vec3& p : new_pos) mesh_traits<M>::add_vertex(mesh, p);
+    for (const Face& f : new_faces) mesh_traits<M>::add_face(mesh, f);
+    if constexpr (std::is_same_v<M, IndexedMesh>) {
+        if (mesh.normals.size() == nv0 && nv0 > 0 && !new_pos.empty()) {
+            mesh.normals.resize(mesh.vertices.size(), Vec3::Zero());
+            for (const Face& f : new_faces) {
+                const Vec3 n = (mesh.vertices[f[1]] - mesh.vertices[f[0]]).cross(mesh.vertices[f[2]] - mesh.vertices[f[0]]);
+                for (const Index v : f)
+                    if (v >= nv0) mesh.normals[v] += n;
+            }
+            for (Index v = nv0; v < mesh.vertices.size(); ++v)
+                if (mesh.normals[v].norm() > 0) mesh.normals[v].normalize();
+        }
+    }
+    out.new_vertices = new_pos.size();
+    out.new_faces = new_faces.size();
+    return out;
+}
+
+/// One loop: fill_holes(mesh, {loop}, params).
+template <TopologyMutableMesh M>
+FillResult fill_hole(M& mesh, const std::vector<Index>& loop, const FillParams& params = {}) {
+    return fill_holes(mesh, std::vector<std::vector<Index>>{loop}, params);
+}
+
+}  // namespace kintsugi
