@@ -387,7 +387,7 @@ TEST_CASE("bad files give io_error naming the file and the problem") {
         b.put<std::uint8_t>(3);
         b.put<std::int32_t>(0);
         expect("e.ply", "ply\nformat binary_little_endian 1.0\n" + vbody + fhead + b.body,
-               "truncated PLY body: the header declares 1 face elements of at least 13 bytes");
+               "truncated PLY body: the file ends inside face 0 of 1 declared in the header");
         // A quad then a cut triangle: passes the size bound, fails inside face 1.
         BinaryPly q;
         for (int i = 0; i < 9; ++i) q.put<float>(1.f);

@@ -35,7 +35,8 @@ struct ReadInfo {
     std::size_t polygons_triangulated = 0;
     /// What the file holds that the reader did not use, e.g. "vertex.confidence",
     /// "face.flags", "edge.vertex1" (PLY element.property), "vt", "usemtl" (OBJ statements),
-    /// "vertex colors" (COFF). Each entry appears once.
+    /// "vertex colors" (COFF). Each entry appears once, with bytes outside printable ASCII
+    /// escaped as \xHH; after 64 entries the list ends with "...".
     std::vector<std::string> ignored_properties;
 };
 

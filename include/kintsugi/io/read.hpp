@@ -6,12 +6,18 @@
 /// @brief Reading meshes and point clouds: PLY (ascii, binary little/big endian), OFF
 /// (incl. NOFF/COFF), OBJ, XYZ and PWN, chosen by the file extension (case-insensitive).
 ///
+/// Text (OBJ, OFF, XYZ, PWN, the PLY header and ascii body) may start with a UTF-8
+/// byte-order mark and use LF, CRLF or old-Mac CR line endings; UTF-16/32 text is refused.
+/// Only regular files are read (a FIFO or a device, also through a symbolic link, is
+/// refused: it may never end).
+///
 /// Every failure throws kintsugi::io_error whose message starts with the file name and
 /// says what is wrong: missing or empty file, malformed header, truncated body, NaN/Inf
 /// coordinates or normals, a face index out of range (with the face number), a face with
 /// fewer than 3 vertices, or a polygon when ReadOptions::triangulate is false. Header
 /// counts are checked against the file size before anything is allocated. The output
-/// argument of the template overloads is left untouched when reading fails.
+/// argument of the template overloads is left untouched when reading fails. File content
+/// quoted in a message is escaped (bytes outside printable ASCII as \xHH).
 /// The parsers are kintsugi's own (io/detail/, see common.hpp for the measured reasons).
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
@@ -38,8 +44,8 @@ inline RawGeometry read_any(const std::filesystem::path& path, const ReadOptions
     const std::string name = path.string();
     const std::string ext = lower_extension(path);
     if (ext != ".ply" && ext != ".off" && ext != ".obj" && ext != ".xyz" && ext != ".pwn")
-        throw io_error(name, "unsupported file extension '" + path.extension().string() +
-                                 "'; kintsugi reads .ply, .off, .obj, .xyz and .pwn");
+        throw io_error(name, "unsupported file extension " + quote(path.extension().string()) +
+                                 "; kintsugi reads .ply, .off, .obj, .xyz and .pwn");
     const FileBuffer buf = FileBuffer::read(path);
     if (ext == ".ply") return read_ply(buf, options, name);
     if (ext == ".off") return read_off(buf, options, name);

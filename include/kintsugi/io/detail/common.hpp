@@ -25,6 +25,7 @@
 #include <kintsugi/io/options.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -33,10 +34,17 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <new>
 #include <string>
 #include <string_view>
 #include <system_error>
 #include <vector>
+
+#if defined(__unix__) || defined(__APPLE__)
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#endif
 
 namespace kintsugi::detail::io {
 
@@ -49,43 +57,101 @@ public:
     [[nodiscard]] const char* begin() const { return data_.get(); }
     [[nodiscard]] const char* end() const { return data_.get() + size_; }
 
-    /// Reads `path`; throws io_error when it is missing, not a regular file, unreadable or empty.
+    /// Reads `path`; throws io_error when it is missing, not a regular file (a FIFO or a
+    /// device may never end, so it is refused rather than read), unreadable or empty.
+    /// Reads at most the size the file had when it was opened.
     static FileBuffer read(const std::filesystem::path& path) {
         const std::string name = path.string();
         std::error_code ec;
         const auto status = std::filesystem::status(path, ec);
-        if (ec || !std::filesystem::exists(status)) throw io_error(name, "file does not exist");
+        if (ec || !std::filesystem::exists(status)) {
+            std::error_code lec;
+            if (std::filesystem::is_symlink(std::filesystem::symlink_status(path, lec)))
+                throw io_error(name, "is a symbolic link to a file that does not exist");
+            throw io_error(name, "file does not exist");
+        }
         if (std::filesystem::is_directory(status)) throw io_error(name, "is a directory, not a file");
+        if (!std::filesystem::is_regular_file(status)) throw not_regular(name, status.type());
+        FileBuffer buf;
+#if defined(__unix__) || defined(__APPLE__)
+        // O_NONBLOCK: if the path was swapped for a FIFO since the check above, open() must
+        // not wait for a writer; fstat() on the descriptor then refuses it.
+        const int fd = ::open(name.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+        if (fd < 0) throw io_error(name, "cannot open for reading: " + std::generic_category().message(errno));
+        struct Closer {
+            int fd;
+            ~Closer() { ::close(fd); }
+        } closer{fd};
+        struct stat st {};
+        if (::fstat(fd, &st) != 0) throw io_error(name, "cannot read: " + std::generic_category().message(errno));
+        if (!S_ISREG(st.st_mode))
+            throw not_regular(name, S_ISDIR(st.st_mode)    ? std::filesystem::file_type::directory
+                                    : S_ISFIFO(st.st_mode) ? std::filesystem::file_type::fifo
+                                    : S_ISCHR(st.st_mode)  ? std::filesystem::file_type::character
+                                    : S_ISBLK(st.st_mode)  ? std::filesystem::file_type::block
+                                    : S_ISSOCK(st.st_mode) ? std::filesystem::file_type::socket
+                                                           : std::filesystem::file_type::unknown);
+        const std::size_t file_size = static_cast<std::size_t>(st.st_size);
+        if (file_size == 0) throw io_error(name, "file is empty");
+        buf.allocate(name, file_size);
+        while (buf.size_ < file_size) {
+            const ssize_t n = ::read(fd, buf.data_.get() + buf.size_, file_size - buf.size_);
+            if (n < 0 && errno == EINTR) continue;
+            if (n < 0) throw io_error(name, "read error: " + std::generic_category().message(errno));
+            if (n == 0) break;  // the file shrank while being read: keep what is there
+            buf.size_ += static_cast<std::size_t>(n);
+        }
+#else
+        const auto file_size = std::filesystem::file_size(path, ec);
+        if (ec) throw io_error(name, "cannot read: " + ec.message());
+        if (file_size == 0) throw io_error(name, "file is empty");
         std::FILE* f = std::fopen(name.c_str(), "rb");
         if (!f) throw io_error(name, "cannot open for reading: " + std::generic_category().message(errno));
         struct Closer {
             std::FILE* f;
             ~Closer() { std::fclose(f); }
         } closer{f};
-        FileBuffer buf;
-        const auto file_size = std::filesystem::file_size(path, ec);
-        if (!ec && file_size > 0) {
-            buf.data_.reset(new char[file_size + 1]);
-            buf.size_ = std::fread(buf.data_.get(), 1, file_size, f);
-            if (buf.size_ != file_size && std::ferror(f))
-                throw io_error(name, "read error: " + std::generic_category().message(errno));
-        } else {
-            // Not a regular file with a known size (a pipe, /proc): read in chunks.
-            std::string acc;
-            char chunk[1 << 16];
-            std::size_t n;
-            while ((n = std::fread(chunk, 1, sizeof chunk, f)) > 0) acc.append(chunk, n);
-            if (std::ferror(f)) throw io_error(name, "read error: " + std::generic_category().message(errno));
-            buf.data_.reset(new char[acc.size() + 1]);
-            std::memcpy(buf.data_.get(), acc.data(), acc.size());
-            buf.size_ = acc.size();
-        }
+        buf.allocate(name, static_cast<std::size_t>(file_size));
+        buf.size_ = std::fread(buf.data_.get(), 1, static_cast<std::size_t>(file_size), f);
+        if (buf.size_ != file_size && std::ferror(f))
+            throw io_error(name, "read error: " + std::generic_category().message(errno));
+#endif
         if (buf.size_ == 0) throw io_error(name, "file is empty");
         buf.data_[buf.size_] = '\0';
         return buf;
     }
 
+    /// A copy of `size` bytes already in memory (the fuzzing harnesses use this).
+    static FileBuffer from_memory(const void* data, std::size_t size) {
+        FileBuffer buf;
+        buf.allocate("memory", size);
+        if (size > 0) std::memcpy(buf.data_.get(), data, size);
+        buf.size_ = size;
+        buf.data_[size] = '\0';
+        return buf;
+    }
+
 private:
+    void allocate(const std::string& name, std::size_t size) {
+        try {
+            data_.reset(new char[size + 1]);
+        } catch (const std::bad_alloc&) {
+            throw io_error(name, "the file's " + std::to_string(size) + " bytes do not fit in memory");
+        }
+    }
+    [[nodiscard]] static io_error not_regular(const std::string& name, std::filesystem::file_type type) {
+        using ft = std::filesystem::file_type;
+        const char* kind = type == ft::fifo        ? "a FIFO (named pipe)"
+                           : type == ft::character ? "a character device"
+                           : type == ft::block     ? "a block device"
+                           : type == ft::socket    ? "a socket"
+                           : type == ft::directory ? "a directory"
+                                                   : "an unknown kind of file";
+        return io_error(name, std::string("is ") + kind +
+                                  ", not a regular file; kintsugi reads regular files only (a pipe or a device "
+                                  "may never end): copy the data to a file first");
+    }
+
     std::unique_ptr<char[]> data_;
     std::size_t size_ = 0;
 };
@@ -99,10 +165,36 @@ struct RawGeometry {
     ReadInfo info;
 };
 
-/// Adds `what` to info.ignored_properties once.
-inline void note_ignored(ReadInfo& info, std::string what) {
+/// `s` with every byte outside printable ASCII escaped (\t, \r, \n, \xHH), so that file
+/// content quoted in a message or in ReadInfo shows no invisible or raw bytes.
+[[nodiscard]] inline std::string printable(std::string_view s) {
+    static constexpr char hex[] = "0123456789ABCDEF";
+    std::string out;
+    out.reserve(s.size());
+    for (const char ch : s) {
+        const auto c = static_cast<unsigned char>(ch);
+        if (c >= 0x20 && c < 0x7F) out += ch;
+        else if (c == '\t') out += "\\t";
+        else if (c == '\r') out += "\\r";
+        else if (c == '\n') out += "\\n";
+        else {
+            out += "\\x";
+            out += hex[c >> 4];
+            out += hex[c & 15];
+        }
+    }
+    return out;
+}
+
+/// Adds `raw` (escaped by printable()) to info.ignored_properties once. The list keeps at
+/// most 64 names, then ends with "..." (a garbage file must not make it quadratic).
+inline void note_ignored(ReadInfo& info, std::string_view raw) {
+    constexpr std::size_t max_names = 64;
     auto& v = info.ignored_properties;
-    if (std::find(v.begin(), v.end(), what) == v.end()) v.push_back(std::move(what));
+    if (v.size() > max_names) return;
+    std::string what = printable(raw);
+    if (std::find(v.begin(), v.end(), what) != v.end()) return;
+    v.push_back(v.size() < max_names ? std::move(what) : std::string("..."));
 }
 
 [[nodiscard]] inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }
@@ -140,8 +232,23 @@ inline void note_ignored(ReadInfo& info, std::string what) {
     return true;
 }
 
-/// Splits a text buffer into lines; tracks 1-based line numbers. Strips '\r' and, when
-/// `comment` is not '\0', everything from the comment character on.
+/// Where the text of `buf` starts: past a UTF-8 byte-order mark (which some editors
+/// write). UTF-16 and UTF-32 text is refused with a message saying so.
+[[nodiscard]] inline const char* text_begin(const FileBuffer& buf, const std::string& path) {
+    const auto* u = reinterpret_cast<const unsigned char*>(buf.begin());
+    const std::size_t n = buf.size();
+    if (n >= 3 && u[0] == 0xEF && u[1] == 0xBB && u[2] == 0xBF) return buf.begin() + 3;
+    const bool utf32 = n >= 4 && ((u[0] == 0xFF && u[1] == 0xFE && u[2] == 0 && u[3] == 0) ||
+                                  (u[0] == 0 && u[1] == 0 && u[2] == 0xFE && u[3] == 0xFF));
+    if (utf32) throw io_error(path, "the file is UTF-32 text (it starts with a UTF-32 byte-order mark); save it as UTF-8 or ASCII");
+    if (n >= 2 && ((u[0] == 0xFF && u[1] == 0xFE) || (u[0] == 0xFE && u[1] == 0xFF)))
+        throw io_error(path, "the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save it as UTF-8 or ASCII");
+    return buf.begin();
+}
+
+/// Splits a text buffer into lines; tracks 1-based line numbers. A line ends at LF, CRLF
+/// or a lone CR (old Mac files). Strips surrounding whitespace and, when `comment` is
+/// not '\0', everything from the comment character on.
 class LineReader {
 public:
     LineReader(const char* begin, const char* end, char comment, std::size_t first_line = 1)
@@ -151,9 +258,19 @@ public:
     bool next(std::string_view& out) {
         while (p_ < end_) {
             const char* b = p_;
-            const char* nl = static_cast<const char*>(std::memchr(p_, '\n', static_cast<std::size_t>(end_ - p_)));
-            const char* e = nl ? nl : end_;
-            p_ = nl ? nl + 1 : end_;
+            // The next LF is cached: a file with CR endings only would otherwise be
+            // searched to its end for every line.
+            if (!nl_ || nl_ < p_) {
+                nl_ = static_cast<const char*>(std::memchr(p_, '\n', static_cast<std::size_t>(end_ - p_)));
+                if (!nl_) nl_ = end_;
+            }
+            const char* e = nl_;
+            p_ = nl_ < end_ ? nl_ + 1 : end_;
+            const char* cr = static_cast<const char*>(std::memchr(b, '\r', static_cast<std::size_t>(nl_ - b)));
+            if (cr && cr + 1 < nl_) {  // a lone CR, not the CR of a CRLF, ends the line
+                e = cr;
+                p_ = cr + 1;
+            }
             ++line_;
             if (comment_ != '\0') {
                 const char* c = static_cast<const char*>(std::memchr(b, comment_, static_cast<std::size_t>(e - b)));
@@ -175,6 +292,7 @@ public:
 private:
     const char* p_;
     const char* end_;
+    const char* nl_ = nullptr;  ///< next LF at or after p_ (end_ when none), null before the first search
     char comment_;
     std::size_t line_;
 };
@@ -203,10 +321,17 @@ private:
     const char* end_;
 };
 
-/// Shortens a token for an error message.
+/// A token or name of the file for an error message: shortened to 40 characters, bytes
+/// outside printable ASCII escaped (see printable()).
+[[nodiscard]] inline std::string shown(std::string_view tok) {
+    return tok.size() > 40 ? printable(tok.substr(0, 37)) + "..." : printable(tok);
+}
+/// shown() in single quotes.
 [[nodiscard]] inline std::string quote(std::string_view tok) {
-    if (tok.size() > 40) return "'" + std::string(tok.substr(0, 37)) + "...'";
-    return "'" + std::string(tok) + "'";
+    std::string s(1, '\'');
+    s += shown(tok);
+    s += '\'';
+    return s;
 }
 
 [[nodiscard]] inline bool all_finite(const Vec3& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }

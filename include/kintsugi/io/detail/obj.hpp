@@ -28,7 +28,7 @@ namespace kintsugi::detail::io {
 inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, const std::string& path) {
     RawGeometry g;
     g.info.format = "obj";
-    LineReader lr(buf.begin(), buf.end(), '#');
+    LineReader lr(text_begin(buf, path), buf.end(), '#');
     std::string_view line, kw, s;
     auto bad = [&](const std::string& what) {
         return io_error(path, "malformed OBJ (line " + std::to_string(lr.line()) + "): " + what);
@@ -44,10 +44,11 @@ inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, c
         if (!parse_integer(text, i)) throw bad(quote(text) + " is not a " + what + " index");
         if (i == 0) throw bad(std::string(what) + " index 0 (OBJ indices start at 1)");
         if (i < 0) {
-            if (static_cast<unsigned long long>(-i) > count)
+            const unsigned long long back = 0ULL - static_cast<unsigned long long>(i);  // -i, also for LLONG_MIN
+            if (back > count)
                 throw bad("relative " + std::string(what) + " index " + std::to_string(i) + " points before the first " +
                           what + " (only " + std::to_string(count) + " defined so far)");
-            return count - static_cast<std::size_t>(-i);
+            return count - static_cast<std::size_t>(back);
         }
         return static_cast<Index>(i - 1);
     };

@@ -22,7 +22,7 @@ namespace kintsugi::detail::io {
 inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, const std::string& path) {
     RawGeometry g;
     g.info.format = "off";
-    LineReader lr(buf.begin(), buf.end(), '#');
+    LineReader lr(text_begin(buf, path), buf.end(), '#');
     std::string_view line;
     auto bad = [&](const std::string& what) {
         return io_error(path, "malformed OFF (line " + std::to_string(lr.line()) + "): " + what);
@@ -62,10 +62,11 @@ inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, c
     long long nv = -1, nf = -1;
     if (counts.size() < 2 || !parse_integer(counts[0], nv) || !parse_integer(counts[1], nf) || nv < 0 || nf < 0)
         throw bad("expected the counts '<vertices> <faces> [<edges>]'");
-    // A vertex line takes at least "0 0 0\n", a face line "3 0 1 2\n".
+    // A vertex line takes at least "0 0 0\n", a face line "0\n" (a face of fewer than 3
+    // vertices is reported by add_polygon(), not as a truncation).
     const std::size_t remaining = lr.remaining() + 1;
     if (static_cast<unsigned long long>(nv) > remaining / 6 ||
-        static_cast<unsigned long long>(nf) > (remaining - static_cast<std::size_t>(nv) * 6) / 8)
+        static_cast<unsigned long long>(nf) > (remaining - static_cast<std::size_t>(nv) * 6) / 2)
         throw io_error(path, "truncated OFF: the header declares " + std::to_string(nv) + " vertices and " +
                                  std::to_string(nf) + " faces, but only " + std::to_string(lr.remaining()) +
                                  " bytes follow");
@@ -98,7 +99,7 @@ inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, c
         }
         if (t.next(s) && !colours && !texture) note_ignored(g.info, "extra vertex values");
     }
-    g.faces.reserve(n_faces);
+    g.faces.reserve(std::min(n_faces, remaining / 8));  // a triangle line takes at least "3 0 1 2\n"
     std::vector<Index> poly;
     for (std::size_t f = 0; f < n_faces; ++f) {
         if (!lr.next(line))
@@ -109,17 +110,17 @@ inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, c
         long long k = -1;
         t.next(s);
         if (!parse_integer(s, k) || k < 0) throw bad(face_where(f, 0) + " does not start with a vertex count");
-        if (static_cast<std::size_t>(k) > line.size()) throw bad(face_where(f, 0) + " has too few indices");
-        poly.resize(static_cast<std::size_t>(k));
-        for (std::size_t j = 0; j < poly.size(); ++j) {
+        const std::size_t declared = static_cast<std::size_t>(k);
+        poly.clear();  // grows with the indices listed, not with the declared count
+        while (poly.size() < declared && t.next(s)) {
             long long idx = -1;
-            if (!t.next(s))
-                throw bad(face_where(f, 0) + " declares " + std::to_string(k) + " vertices but lists " +
-                          std::to_string(j));
             if (!parse_integer(s, idx)) throw bad(quote(s) + " is not a vertex index (" + face_where(f, 0) + ")");
             if (idx < 0) throw bad(face_where(f, 0) + " uses a negative vertex index " + std::to_string(idx));
-            poly[j] = static_cast<Index>(idx);
+            poly.push_back(static_cast<Index>(idx));
         }
+        if (poly.size() < declared)
+            throw bad(face_where(f, 0) + " declares " + std::to_string(k) + " vertices but lists " +
+                      std::to_string(poly.size()));
         if (t.next(s)) note_ignored(g.info, "face colors");
         add_polygon(g, poly, options, path, f, lr.line(), n_vertices, nullptr);
     }

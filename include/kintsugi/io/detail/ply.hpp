@@ -90,25 +90,28 @@ struct PlyHeader {
 /// Parses and checks the header; assigns roles to the properties.
 inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path, ReadInfo& info) {
     PlyHeader h;
-    const char* p = buf.begin();
+    const char* p = text_begin(buf, path);
     const char* end = buf.end();
     auto bad = [&](std::size_t line, const std::string& what) -> io_error {
         return io_error(path, "malformed PLY header (line " + std::to_string(line) + "): " + what);
     };
+    // The header's lines end as its first line does: LF or CRLF (then a CR before the
+    // LF is dropped), or a lone CR (old Mac). The body starts right after the terminator
+    // of 'end_header', so a binary body starting with byte 0x0A is not misread as an LF.
+    if (static_cast<std::size_t>(end - p) < 4 || std::string_view(p, 3) != "ply" || (p[3] != '\n' && p[3] != '\r'))
+        throw io_error(path, "not a PLY file: the first line is not 'ply'");
+    const char eol = p[3] == '\r' && (static_cast<std::size_t>(end - p) < 5 || p[4] != '\n') ? '\r' : '\n';
     std::size_t line_no = 0;
     bool have_format = false, done = false;
     std::vector<std::string_view> tok;
     while (p < end && !done) {
-        const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
+        const char* nl = static_cast<const char*>(std::memchr(p, eol, static_cast<std::size_t>(end - p)));
         if (!nl) throw io_error(path, "malformed PLY header: no 'end_header' line");
         std::string_view line(p, static_cast<std::size_t>(nl - p));
         p = nl + 1;
         ++line_no;
-        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-        if (line_no == 1) {
-            if (line != "ply") throw io_error(path, "not a PLY file: the first line is not 'ply'");
-            continue;
-        }
+        if (eol == '\n' && !line.empty() && line.back() == '\r') line.remove_suffix(1);
+        if (line_no == 1) continue;  // 'ply', checked above
         Tokens(line).all(tok);
         if (tok.empty()) continue;
         const std::string_view kw = tok[0];
@@ -132,7 +135,7 @@ inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path
             e.count = static_cast<std::uint64_t>(count);
             e.header_line = line_no;
             for (const PlyElement& other : h.elements)
-                if (other.name == e.name) throw bad(line_no, "element '" + e.name + "' is declared twice");
+                if (other.name == e.name) throw bad(line_no, "element " + quote(e.name) + " is declared twice");
             h.elements.push_back(std::move(e));
         } else if (kw == "property") {
             if (h.elements.empty()) throw bad(line_no, "'property' before any 'element'");
@@ -164,7 +167,7 @@ inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path
     bool have_vertex = false;
     for (PlyElement& e : h.elements) {
         if (e.props.empty() && e.count > 0)
-            throw bad(e.header_line, "element '" + e.name + "' has no properties");
+            throw bad(e.header_line, "element " + quote(e.name) + " has no properties");
         if (e.name == "vertex") {
             have_vertex = true;
             int found[8] = {};
@@ -183,7 +186,7 @@ inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path
                 const PlyRole r = role_of(prop.name);
                 if (r == PlyRole::ignored) continue;
                 if (found[static_cast<int>(r)]++)
-                    throw bad(e.header_line, "vertex property '" + prop.name + "' is declared twice");
+                    throw bad(e.header_line, "vertex property " + quote(prop.name) + " is declared twice");
                 prop.role = r;
             }
             if (!found[1] || !found[2] || !found[3])
@@ -287,7 +290,7 @@ inline void ply_store_vertex(RawGeometry& g, const PlyVertexValues& val, bool no
 }
 
 [[nodiscard]] inline io_error ply_truncated(const std::string& path, const PlyElement& e, std::uint64_t item) {
-    return io_error(path, "truncated PLY body: the file ends inside " + e.name + " " + std::to_string(item) +
+    return io_error(path, "truncated PLY body: the file ends inside " + shown(e.name) + " " + std::to_string(item) +
                               " of " + std::to_string(e.count) + " declared in the header");
 }
 
@@ -301,20 +304,24 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
     bool deferred_faces = false;
     std::vector<Index> poly;
     for (const PlyElement& e : h.elements) {
-        // Smallest possible size of one item, to bound the count before allocating.
-        std::size_t min_size = 0;
+        // Smallest possible size of one item, to bound the count before allocating (a face
+        // may list fewer than 3 vertices: add_polygon() says so, it is not a truncation);
+        // and the size of one with triangles, to bound what is reserved.
+        std::size_t min_size = 0, triangle_size = 0;
         bool fixed = true;
         for (const PlyProperty& prop : e.props) {
             if (prop.is_list) {
                 fixed = false;
-                min_size += ply_size(prop.count_type) + (prop.role == PlyRole::indices ? 3 * ply_size(prop.type) : 0);
+                min_size += ply_size(prop.count_type);
+                triangle_size += ply_size(prop.count_type) + (prop.role == PlyRole::indices ? 3 * ply_size(prop.type) : 0);
             } else {
                 min_size += ply_size(prop.type);
+                triangle_size += ply_size(prop.type);
             }
         }
         const std::size_t remaining = static_cast<std::size_t>(end - p);
         if (min_size > 0 && e.count > remaining / min_size)
-            throw io_error(path, "truncated PLY body: the header declares " + std::to_string(e.count) + " " + e.name +
+            throw io_error(path, "truncated PLY body: the header declares " + std::to_string(e.count) + " " + shown(e.name) +
                                      " elements of at least " + std::to_string(min_size) + " bytes each, but only " +
                                      std::to_string(remaining) + " bytes follow the header");
         const std::size_t count = static_cast<std::size_t>(e.count);
@@ -415,7 +422,7 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
         } else if (e.name == "face") {
             const std::size_t nv_known = vertices_done ? g.vertices.size() : static_cast<std::size_t>(-1);
             deferred_faces = !vertices_done;
-            g.faces.reserve(count);
+            g.faces.reserve(std::min(count, remaining / triangle_size));
             for (std::size_t f = 0; f < count; ++f) {
                 for (const PlyProperty& prop : e.props) {
                     if (prop.is_list) {
@@ -477,13 +484,14 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
 
 // ------------------------------------------------------------------ ascii body
 
-/// Whitespace-separated tokens across lines, with line numbers.
+/// Whitespace-separated tokens across lines, with line numbers (lines end at LF, CRLF or
+/// a lone CR).
 class AsciiCursor {
 public:
     AsciiCursor(const char* b, const char* e, std::size_t line) : p_(b), end_(e), line_(line) {}
     bool next(std::string_view& out) {
         while (p_ < end_ && is_space(*p_)) {
-            if (*p_ == '\n') ++line_;
+            if (*p_ == '\n' || (*p_ == '\r' && (p_ + 1 == end_ || p_[1] != '\n'))) ++line_;
             ++p_;
         }
         if (p_ == end_) return false;
@@ -509,13 +517,14 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
     std::vector<Index> poly;
     std::string_view tok;
     for (const PlyElement& e : h.elements) {
-        std::size_t min_tokens = 0;
-        for (const PlyProperty& prop : e.props)
-            min_tokens += prop.is_list ? (prop.role == PlyRole::indices ? 4 : 1) : 1;
+        // Fewest tokens of one item (a list may be empty: a face of fewer than 3 vertices is
+        // reported by add_polygon(), not as a truncation), and of one with triangles.
+        std::size_t min_tokens = e.props.size(), triangle_tokens = 0;
+        for (const PlyProperty& prop : e.props) triangle_tokens += prop.role == PlyRole::indices ? 4 : 1;
         // Every token takes at least one character and one separator (but the very last).
         const std::size_t remaining = cur.remaining() + 1;
         if (min_tokens > 0 && e.count > remaining / (2 * min_tokens))
-            throw io_error(path, "truncated PLY body: the header declares " + std::to_string(e.count) + " " + e.name +
+            throw io_error(path, "truncated PLY body: the header declares " + std::to_string(e.count) + " " + shown(e.name) +
                                      " elements but only " + std::to_string(cur.remaining()) +
                                      " bytes of text follow the header");
         const std::size_t count = static_cast<std::size_t>(e.count);
@@ -526,15 +535,15 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
             double d = 0;
             if (!parse_double(tok, d))
                 throw io_error(path, "line " + std::to_string(cur.line()) + ": " + quote(tok) + " is not a number (" +
-                                         e.name + " " + std::to_string(item) + ", property " + prop.name + ")");
+                                         shown(e.name) + " " + std::to_string(item) + ", property " + shown(prop.name) + ")");
             return d;
         };
         auto integer = [&](std::size_t item, const PlyProperty& prop) {
             long long v = 0;
             if (!parse_integer(tok, v))
                 throw io_error(path, "line " + std::to_string(cur.line()) + ": " + quote(tok) +
-                                         " is not an integer (" + e.name + " " + std::to_string(item) +
-                                         ", property " + prop.name + ")");
+                                         " is not an integer (" + shown(e.name) + " " + std::to_string(item) +
+                                         ", property " + shown(prop.name) + ")");
             return v;
         };
         auto list_count = [&](std::size_t item, const PlyProperty& prop) {
@@ -542,7 +551,7 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
             const long long n = integer(item, prop);
             if (n < 0 || static_cast<std::size_t>(n) > cur.remaining())
                 throw io_error(path, "line " + std::to_string(cur.line()) + ": bad list length " + quote(tok) + " (" +
-                                         e.name + " " + std::to_string(item) + ", property " + prop.name + ")");
+                                         shown(e.name) + " " + std::to_string(item) + ", property " + shown(prop.name) + ")");
             return static_cast<std::size_t>(n);
         };
         if (e.name == "vertex") {
@@ -582,7 +591,7 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
         } else if (e.name == "face") {
             const std::size_t nv_known = vertices_done ? g.vertices.size() : static_cast<std::size_t>(-1);
             deferred_faces = !vertices_done;
-            g.faces.reserve(count);
+            g.faces.reserve(std::min(count, remaining / (2 * triangle_tokens)));
             for (std::size_t f = 0; f < count; ++f) {
                 for (const PlyProperty& prop : e.props) {
                     if (prop.is_list) {

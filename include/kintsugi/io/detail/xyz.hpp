@@ -22,7 +22,7 @@ inline RawGeometry read_xyz(const FileBuffer& buf, bool pwn, const std::string& 
     RawGeometry g;
     g.info.format = pwn ? "pwn" : "xyz";
     const char* kind = pwn ? "PWN" : "XYZ";
-    LineReader lr(buf.begin(), buf.end(), '#');
+    LineReader lr(text_begin(buf, path), buf.end(), '#');
     std::string_view line, s;
     std::size_t columns = 0;
     bool first = true;
