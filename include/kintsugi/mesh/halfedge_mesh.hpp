@@ -22,8 +22,8 @@
 /// arithmetic; per halfedge only its vertex and its twin are stored (4 + 4 bytes), per
 /// vertex one outgoing halfedge. Chosen over CGAL::Surface_mesh with its Euler
 /// operations by measurement (docs/methods/mesh_editing.md: 1M random split / collapse /
-/// flip, time and memory). Removed vertices and faces leave holes in the index ranges
-/// until collect_garbage() or to_mesh() compacts them.
+/// flip, time and memory). Removed vertices and faces leave holes in the index ranges,
+/// which later splits reuse; collect_garbage() or to_mesh() compacts them.
 ///
 /// Invariants (checked by validate()): every face has three distinct live vertices;
 /// every edge has one or two faces, consistently oriented; every vertex's faces form
@@ -46,7 +46,8 @@ namespace kintsugi {
 /// Editable manifold triangle mesh with per-vertex attributes (see the file comment).
 ///
 /// Indices: vertices 0 .. vertex_capacity()-1, faces 0 .. face_capacity()-1, halfedges
-/// 0 .. 3 face_capacity()-1; removed elements keep their index until collect_garbage().
+/// 0 .. 3 face_capacity()-1; removed elements keep their index until a split reuses it
+/// or collect_garbage() compacts. Without collapses, new elements are appended.
 /// Not thread-safe for writing; concurrent reads are fine.
 class HalfedgeMesh {
     using I = std::uint32_t;
@@ -221,6 +222,14 @@ private:
         if (b != invalid) twin_[b] = narrow(a);
     }
     Index new_vertex() {
+        if (!free_vertices_.empty()) {  // reuse a removed vertex's slot
+            const Index v = free_vertices_.back();
+            free_vertices_.pop_back();
+            v_removed_[v] = 0;
+            v_out_[v] = nil;
+            --removed_vertices_;
+            return v;
+        }
         v_out_.push_back(nil);
         v_removed_.push_back(0);
         pos_.emplace_back(Vec3::Zero());
@@ -229,11 +238,21 @@ private:
         return v_out_.size() - 1;
     }
     Index new_face(Index a, Index b, Index c) {
-        corner_.push_back(narrow(a));
-        corner_.push_back(narrow(b));
-        corner_.push_back(narrow(c));
-        twin_.insert(twin_.end(), 3, nil);
-        return corner_.size() / 3 - 1;
+        Index f = 0;
+        if (!free_faces_.empty()) {  // reuse a removed face's slot
+            f = free_faces_.back();
+            free_faces_.pop_back();
+            --removed_faces_;
+        } else {
+            f = corner_.size() / 3;
+            corner_.resize(corner_.size() + 3);
+            twin_.resize(twin_.size() + 3);
+        }
+        corner_[3 * f] = narrow(a);
+        corner_[3 * f + 1] = narrow(b);
+        corner_[3 * f + 2] = narrow(c);
+        for (Index k = 0; k < 3; ++k) twin_[3 * f + k] = nil;
+        return f;
     }
     /// Attributes of `dst` = interpolation between a and b at t.
     void interpolate(Index dst, Index a, Index b, Scalar t) {
@@ -257,6 +276,7 @@ private:
     std::vector<Vec3> pos_, normals_;
     std::vector<std::vector<Scalar>> scalars_;
     std::vector<std::string> scalar_names_;
+    std::vector<Index> free_vertices_, free_faces_;  ///< removed slots, reused by split
     std::size_t removed_vertices_ = 0, removed_faces_ = 0;
 };
 
@@ -361,6 +381,8 @@ inline std::vector<Index> HalfedgeMesh::collect_garbage() {
     if (!normals_.empty()) normals_.resize(nv);
     for (auto& s : scalars_) s.resize(nv);
     removed_vertices_ = removed_faces_ = 0;
+    free_vertices_.clear();
+    free_faces_.clear();
     return vmap;
 }
 
@@ -550,6 +572,7 @@ inline Index HalfedgeMesh::collapse(Index h, Scalar t) {
             twin_[3 * f + k] = nil;
         }
         ++removed_faces_;
+        free_faces_.push_back(f);
     };
     remove_face(face(h));
     if (g != invalid) remove_face(face(g));
@@ -564,6 +587,7 @@ inline Index HalfedgeMesh::collapse(Index h, Scalar t) {
     v_out_[a] = nil;
     v_removed_[a] = 1;
     ++removed_vertices_;
+    free_vertices_.push_back(a);
     return b;
 }
 
