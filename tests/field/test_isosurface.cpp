@@ -21,6 +21,7 @@
 #include <atomic>
 #include <cstring>
 #include <random>
+#include <set>
 #include <stop_token>
 
 namespace ks = kintsugi;
@@ -184,6 +185,33 @@ TEST_CASE("extract_isosurface: one seed cube finds the whole component; a region
     CHECK(rc.status == ks::Status::ok);
     CHECK(c.faces.empty());
     CHECK(rc.lattice_evaluations == 8);
+}
+
+TEST_CASE("extract_isosurface: seeded by the leaves of an octree built on surface samples") {
+    const TorusField f;
+    const auto pts = kintsugi_test::surface_samples(f, 30);
+    REQUIRE(pts.size() > 1000);
+    // a cube with room around the torus (the default cube would touch it)
+    const ks::Octree oct(pts, ks::OctreeParams{.max_level = 6, .cube_side = 3.2, .cube_min = ks::Vec3::Constant(-1.6)});
+    const ks::IsoRegion region = ks::IsoRegion::from_octree(oct);
+    CHECK(region.grid.cells == std::array<int, 3>{64, 64, 64});
+    CHECK(region.grid.cell_size == doctest::Approx(oct.cube_side() / 64));
+    // every sample lies in a seed cube
+    std::set<std::array<int, 3>> seeds(region.cells.begin(), region.cells.end());
+    for (std::size_t i = 0; i < pts.size(); i += 17) {
+        std::array<int, 3> c{};
+        for (int k = 0; k < 3; ++k)
+            c[k] = static_cast<int>(std::floor((pts[i][k] - region.grid.origin[k]) / region.grid.cell_size));
+        CHECK(seeds.count(c) == 1);
+    }
+    ks::IndexedMesh m;
+    const auto r = ks::extract_isosurface(f, region, m);
+    REQUIRE(r.status == ks::Status::ok);
+    const auto rep = ks::topology_report(m);
+    CHECK(rep.closed);
+    CHECK(rep.manifold);
+    CHECK(rep.genus == 1);
+    CHECK_THROWS_WITH_AS((void)ks::IsoRegion::from_octree(ks::Octree{}), doctest::Contains("empty"), ks::invalid_input);
 }
 
 TEST_CASE("extract_isosurface: a surface leaving the grid is cut open there; NaN counts as outside") {

@@ -11,6 +11,9 @@
 #include <kintsugi/adapters/projection.hpp>
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/field/isosurface.hpp>
+#include <kintsugi/mesh/geometry.hpp>
+#include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -273,6 +276,31 @@ TEST_CASE("PUField: torus — value and sign (genus 1)") {
     CHECK(res.field(ks::Vec3(0, 0, 0)) > 0);
     CHECK(res.field(ks::Vec3(1, 0, 0)) < 0);
     CHECK(res.field(ks::Vec3(0, -1, 0)) < 0);
+}
+
+TEST_CASE("PUField: kintsugi's sign — extract_isosurface gives the outward torus from its own samples") {
+    const Torus t;
+    std::mt19937_64 rng(4);
+    V pts, nrm;
+    t.sample(20000, rng, pts, nrm);
+    const auto res = ks::PUField::build(ks::with_normals(pts, nrm), {.max_level = 6});
+    REQUIRE(res.status == ks::Status::ok);
+    const ks::PUField& f = res.field;
+    const auto grid = ks::IsoGrid::fit(f.bounding_box(), 64);
+    ks::IndexedMesh m;
+    const auto r = ks::extract_isosurface(f, ks::IsoRegion::narrow_band(grid, pts, grid.cell_size), m);
+    REQUIRE(r.status == ks::Status::ok);
+    const auto rep = ks::topology_report(m);
+    CHECK(rep.closed);
+    CHECK(rep.manifold);
+    CHECK(rep.components == 1);
+    CHECK(rep.genus == 1);
+    CHECK(ks::signed_volume(m) > 0);  // outward: the field is negative inside
+    double worst = 0;
+    for (const auto& v : m.vertices) worst = std::max(worst, std::abs(t.sd(v)));
+    MESSAGE("PU zero set: " << m.vertices.size() << " vertices, max distance to the torus " << worst << " (epsilon "
+                            << f.epsilon() << ")");
+    CHECK(worst < 2 * f.epsilon());
 }
 
 TEST_CASE("PUField: inward normals give the same field; seeds change the cover only") {

@@ -41,6 +41,7 @@
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/field/edge_root.hpp>
 #include <kintsugi/mesh/marching_tetrahedra.hpp>
+#include <kintsugi/spatial/octree.hpp>
 
 #include <algorithm>
 #include <array>
@@ -86,7 +87,8 @@ struct IsoGrid {
 };
 
 /// Where extract_isosurface looks: cubes of a grid (the seeds of the search). Build
-/// it with one of the factories or fill `cells` yourself.
+/// it with one of the factories (full, narrow_band, from_boxes, from_octree) or fill
+/// `cells` yourself.
 struct IsoRegion {
     IsoGrid grid;
     /// Seed cubes as (i, j, k) in [0, cells): any order, repeats allowed.
@@ -147,6 +149,25 @@ struct IsoRegion {
                     for (int i = a[0]; i <= z[0]; ++i) r.cells.push_back({i, j, k});
         }
         return r;
+    }
+
+    /// The leaves of an octree that hold points, on the grid of its finest level
+    /// (2^max_level cubes per side of its cube, in the octree's frame): for an octree
+    /// built on scan points, a band one finest cell wide around the scanned surface.
+    /// @throws invalid_input for an empty octree.
+    [[nodiscard]] static IsoRegion from_octree(const Octree& octree) {
+        if (octree.size() == 0)
+            throw invalid_input("kintsugi::IsoRegion::from_octree: the octree is empty; build it on points first");
+        IsoGrid grid;
+        const int n = 1 << octree.max_level();
+        grid.origin = octree.cube_min();
+        grid.cell_size = octree.cube_side() / n;
+        grid.cells = {n, n, n};
+        std::vector<std::pair<Vec3, Vec3>> boxes;
+        const Vec3 inset = Vec3::Constant(grid.cell_size / 4);  // whole cubes only
+        for (Index c = 0; c < octree.size(); ++c)
+            if (!octree.cell_points(c).empty()) boxes.emplace_back(octree.cell_min(c) + inset, octree.cell_max(c) - inset);
+        return from_boxes(grid, boxes, "kintsugi::IsoRegion::from_octree");
     }
 
     /// Throws invalid_input when the grid is unusable.
