@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs the Debian packages kintsugi needs to build, test and benchmark.
+# Installs the Debian packages kintsugi needs to build, test and benchmark (clang and its
+# libFuzzer runtime for scripts/test.sh's header check and fuzzing).
 # Idempotent; quiet when everything is already present. Needs root (or sudo) to install.
 set -euo pipefail
 
@@ -7,6 +8,7 @@ packages=(
   g++ cmake ninja-build ccache pkg-config python3
   libeigen3-dev libcgal-dev libgmp-dev libmpfr-dev libboost-graph-dev
   libnanoflann-dev libtbb-dev libcli11-dev doctest-dev libbenchmark-dev
+  clang libclang-rt-14-dev
 )
 
 missing=()

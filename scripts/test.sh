@@ -2,6 +2,8 @@
 # Builds kintsugi and runs the whole test suite twice: an optimised build
 # (tests, examples, the CLI and the benchmarks, which must compile), then a
 # build of the test programs under AddressSanitizer + UndefinedBehaviorSanitizer.
+# In between, with clang: every public header compiled alone and a short fuzzing run
+# of each file reader (tests/fuzz/).
 # Usage: scripts/test.sh [--no-sanitize]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,6 +38,25 @@ run_suite() {
 }
 
 run_suite build/release -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_BENCH=ON
+
+# clang: every public header compiled alone (-Wall -Wextra -Wpedantic -Werror), then each
+# reader's libFuzzer harness for KINTSUGI_FUZZ_SECONDS (default 25) from the seed corpus;
+# a rejected header or a fuzzing finding fails the script.
+if command -v clang++ >/dev/null; then
+  t0=$SECONDS
+  echo "== configure build/clang" >&2
+  cmake -S "$root" -B build/clang -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Debug \
+    -DCMAKE_CXX_FLAGS_DEBUG="" -DKINTSUGI_BUILD_TESTS=OFF -DKINTSUGI_BUILD_EXAMPLES=OFF \
+    -DKINTSUGI_CHECK_HEADERS=ON -DKINTSUGI_BUILD_FUZZ=ON >/dev/null
+  echo "== build build/clang (header check, fuzzers)" >&2
+  cmake --build build/clang -j "$jobs"
+  echo "== built build/clang in $((SECONDS - t0)) s" >&2
+  t0=$SECONDS
+  tests/fuzz/run_fuzzers.sh build/clang "${KINTSUGI_FUZZ_SECONDS:-25}"
+  echo "== fuzzed in $((SECONDS - t0)) s" >&2
+else
+  echo "== clang++ not found: header check and fuzzing skipped (scripts/setup.sh installs it)" >&2
+fi
 
 if [ $sanitize -eq 1 ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1

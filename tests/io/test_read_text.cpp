@@ -302,10 +302,11 @@ TEST_CASE("messages and ReadInfo escape raw bytes and control characters of the 
     CHECK(info.ignored_properties == std::vector<std::string>{"vertex.r\\xFF"});
 }
 
-TEST_CASE("ignored statements are listed up to 64, then '...'") {
+// Both inputs took minutes when each new name was compared with every earlier one.
+TEST_CASE("ignored statements are listed up to 64, then '...'; many names cost linear time") {
     TempDir dir;
     std::string content = "v 0 0 0\n";
-    for (int i = 0; i < 1000; ++i) content += "k" + std::to_string(i) + " 1\n";
+    for (int i = 0; i < 200000; ++i) content += "k" + std::to_string(i) + " 1\n";
     ks::ReadInfo info;
     (void)read_text(dir, "many.obj", content, &info);
     REQUIRE(info.ignored_properties.size() == 65);
@@ -319,4 +320,19 @@ TEST_CASE("OBJ: the most negative relative index is an error, not an overflow") 
     write_file(f, "v 0 0 0\nf 1 1 -9223372036854775808\n");
     check_io_error([&] { (void)ks::read_mesh(f); }, f,
                    "relative vertex index -9223372036854775808 points before the first vertex (only 1 defined so far)");
+}
+
+TEST_CASE("a PLY header declaring 200,000 elements is read in linear time") {
+    TempDir dir;
+    std::string content = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                          "property float z\n";
+    for (int i = 0; i < 200000; ++i) content += "element e" + std::to_string(i) + " 0\n";
+    content += "end_header\n1 2 3\n";
+    ks::ReadInfo info;
+    const ks::IndexedMesh m = read_text(dir, "many.ply", content, &info);
+    REQUIRE(m.vertices.size() == 1);
+    CHECK(m.vertices[0] == ks::Vec3(1, 2, 3));
+    const std::string twice = error_of(dir, "twice.ply", content.substr(0, content.size() - 17) +
+                                                            "element e7 0\nend_header\n1 2 3\n");
+    CHECK(twice.find("(line 200007): element 'e7' is declared twice") != std::string::npos);
 }

@@ -21,6 +21,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <unordered_set>
 #include <vector>
 
 namespace kintsugi::detail::io {
@@ -104,6 +105,7 @@ inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path
     std::size_t line_no = 0;
     bool have_format = false, done = false;
     std::vector<std::string_view> tok;
+    std::unordered_set<std::string_view> element_names;  // views into `buf`
     while (p < end && !done) {
         const char* nl = static_cast<const char*>(std::memchr(p, eol, static_cast<std::size_t>(end - p)));
         if (!nl) throw io_error(path, "malformed PLY header: no 'end_header' line");
@@ -134,8 +136,8 @@ inline PlyHeader parse_ply_header(const FileBuffer& buf, const std::string& path
                 throw bad(line_no, "element count " + quote(tok[2]) + " is not a non-negative integer");
             e.count = static_cast<std::uint64_t>(count);
             e.header_line = line_no;
-            for (const PlyElement& other : h.elements)
-                if (other.name == e.name) throw bad(line_no, "element " + quote(e.name) + " is declared twice");
+            if (!element_names.insert(tok[1]).second)  // a set: a header of many elements stays linear
+                throw bad(line_no, "element " + quote(e.name) + " is declared twice");
             h.elements.push_back(std::move(e));
         } else if (kw == "property") {
             if (h.elements.empty()) throw bad(line_no, "'property' before any 'element'");
