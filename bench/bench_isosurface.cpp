@@ -169,6 +169,21 @@ ks::IndexedMesh dual_contour(const F& f, const ks::IsoRegion& region) {
         if (it == val.end()) it = val.emplace(key, f(g.vertex(i, j, k))).first;
         return it->second;
     };
+    // visit(p, e, axis, fp, fe) for each of the 12 edges (p -> e along axis) of cube q
+    // whose ends have different signs
+    auto for_each_crossed_edge = [&](const std::array<std::int64_t, 3>& q, auto&& visit) {
+        for (int axis = 0; axis < 3; ++axis)
+            for (int a = 0; a < 2; ++a)
+                for (int b = 0; b < 2; ++b) {
+                    std::array<std::int64_t, 3> p = q;
+                    p[(axis + 1) % 3] += a;
+                    p[(axis + 2) % 3] += b;
+                    std::array<std::int64_t, 3> e = p;
+                    e[axis] += 1;
+                    const double fp = value(p[0], p[1], p[2]), fe = value(e[0], e[1], e[2]);
+                    if ((fp < 0) != (fe < 0)) visit(p, e, axis, fp, fe);
+                }
+    };
     std::unordered_set<std::uint64_t> active;
     std::vector<std::array<std::int64_t, 3>> wave, next;
     for (const auto& c : region.cells)
@@ -178,27 +193,20 @@ ks::IndexedMesh dual_contour(const F& f, const ks::IsoRegion& region) {
     while (!wave.empty()) {
         next.clear();
         for (const auto& q : wave)
-            for (int axis = 0; axis < 3; ++axis)
-                for (int a = 0; a < 2; ++a)
-                    for (int b = 0; b < 2; ++b) {
-                        std::array<std::int64_t, 3> p = q;
-                        p[(axis + 1) % 3] += a;
-                        p[(axis + 2) % 3] += b;
-                        std::array<std::int64_t, 3> e = p;
-                        e[axis] += 1;
-                        if ((value(p[0], p[1], p[2]) < 0) == (value(e[0], e[1], e[2]) < 0)) continue;
-                        if (!crossed_seen.insert(vkey(p[0], p[1], p[2]) * 3 + axis).second) continue;
-                        crossed.push_back({p[0], p[1], p[2], axis});
-                        for (int du = 0; du < 2; ++du)
-                            for (int dv = 0; dv < 2; ++dv) {
-                                std::array<std::int64_t, 3> m = p;
-                                m[(axis + 1) % 3] -= du;
-                                m[(axis + 2) % 3] -= dv;
-                                bool ok = true;
-                                for (int k = 0; k < 3; ++k) ok = ok && m[k] >= 0 && m[k] < g.cells[k];
-                                if (ok && active.insert(ckey(m[0], m[1], m[2])).second) next.push_back(m);
-                            }
+            for_each_crossed_edge(q, [&](const std::array<std::int64_t, 3>& p, const std::array<std::int64_t, 3>&,
+                                         int axis, double, double) {
+                if (!crossed_seen.insert(vkey(p[0], p[1], p[2]) * 3 + axis).second) return;
+                crossed.push_back({p[0], p[1], p[2], axis});
+                for (int du = 0; du < 2; ++du)
+                    for (int dv = 0; dv < 2; ++dv) {
+                        std::array<std::int64_t, 3> m = p;
+                        m[(axis + 1) % 3] -= du;
+                        m[(axis + 2) % 3] -= dv;
+                        bool ok = true;
+                        for (int k = 0; k < 3; ++k) ok = ok && m[k] >= 0 && m[k] < g.cells[k];
+                        if (ok && active.insert(ckey(m[0], m[1], m[2])).second) next.push_back(m);
                     }
+            });
         wave.swap(next);
     }
     ks::IndexedMesh mesh;
@@ -208,20 +216,12 @@ ks::IndexedMesh dual_contour(const F& f, const ks::IsoRegion& region) {
         if (!fresh) return it->second;
         ks::Vec3 sum = ks::Vec3::Zero();
         int n = 0;
-        for (int axis = 0; axis < 3; ++axis)
-            for (int a = 0; a < 2; ++a)
-                for (int b = 0; b < 2; ++b) {
-                    std::array<std::int64_t, 3> p = q;
-                    p[(axis + 1) % 3] += a;
-                    p[(axis + 2) % 3] += b;
-                    std::array<std::int64_t, 3> e = p;
-                    e[axis] += 1;
-                    const double fa = value(p[0], p[1], p[2]), fb = value(e[0], e[1], e[2]);
-                    if ((fa < 0) == (fb < 0)) continue;
-                    const double t = fa / (fa - fb);
-                    sum += g.vertex(p[0], p[1], p[2]) + t * (g.vertex(e[0], e[1], e[2]) - g.vertex(p[0], p[1], p[2]));
-                    ++n;
-                }
+        for_each_crossed_edge(q, [&](const std::array<std::int64_t, 3>& p, const std::array<std::int64_t, 3>& e, int,
+                                     double fa, double fb) {
+            const double t = fa / (fa - fb);
+            sum += g.vertex(p[0], p[1], p[2]) + t * (g.vertex(e[0], e[1], e[2]) - g.vertex(p[0], p[1], p[2]));
+            ++n;
+        });
         ks::Vec3 x = sum / n;
         const double h = 1e-6 * g.cell_size;
         for (int it2 = 0; it2 < 2; ++it2) {
