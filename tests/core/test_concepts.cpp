@@ -208,3 +208,24 @@ TEST_CASE("Surface_mesh with removed elements or polygons is rejected") {
     sm.remove_vertex(sm.add_vertex(K::Point_3(5, 5, 5)));
     CHECK_THROWS_WITH_AS((void)ks::num_vertices(sm), doctest::Contains("collect_garbage"), ks::invalid_input);
 }
+
+TEST_CASE("to_indexed_mesh refuses a Surface_mesh with a removed face or vertex (CGAL's counts include them)") {
+    for (const bool remove_face : {true, false}) {
+        CAPTURE(remove_face);
+        SurfaceMesh sm;
+        std::vector<SurfaceMesh::Vertex_index> v;
+        for (int i = 0; i < 4; ++i) v.push_back(sm.add_vertex(K::Point_3(i & 1, (i >> 1) & 1, i == 3)));
+        sm.add_face(v[0], v[1], v[2]);
+        const auto last = sm.add_face(v[1], v[3], v[2]);
+        if (remove_face)
+            sm.remove_face(last);
+        else
+            sm.remove_vertex(sm.add_vertex(K::Point_3(5, 5, 5)));
+        CHECK_THROWS_WITH_AS((void)ks::to_indexed_mesh(sm), doctest::Contains("call collect_garbage()"),
+                             ks::invalid_input);
+        sm.collect_garbage();
+        const ks::IndexedMesh m = ks::to_indexed_mesh(sm);
+        CHECK(m.vertices.size() == 4);
+        CHECK(m.faces.size() == (remove_face ? 1u : 2u));
+    }
+}

@@ -159,6 +159,19 @@ struct EigenHolder {
     static constexpr const char* name = "Eigen V/F";
 };
 
+/// `src` as a CGAL::Surface_mesh with one removed element left in place (no
+/// collect_garbage()): its last face when `remove_face`, else an extra isolated vertex.
+/// CGAL's own num_vertices/num_faces count removed elements; kintsugi must refuse it.
+inline SurfaceMesh surface_mesh_with_garbage(const IndexedMesh& src, bool remove_face) {
+    SurfaceMesh sm;
+    ks::assign_mesh(sm, src);
+    if (remove_face)
+        sm.remove_face(SurfaceMesh::Face_index(static_cast<SurfaceMesh::size_type>(src.faces.size() - 1)));
+    else
+        sm.remove_vertex(sm.add_vertex(Kernel::Point_3(7, 7, 7)));
+    return sm;
+}
+
 /// Holds a CGAL::Surface_mesh (the source must be representable: manifold).
 struct SurfaceMeshHolder {
     SurfaceMesh sm;

@@ -8,7 +8,10 @@
 /// mention CGAL.
 ///
 /// Precondition for Surface_mesh: no removed elements (call `collect_garbage()`
-/// after removals), so that vertex and face indices are dense. Faces must be
+/// after removals), so that vertex and face indices are dense; num_vertices /
+/// num_faces throw invalid_input otherwise. kintsugi calls its own accessors
+/// qualified (`kintsugi::num_vertices`), never CGAL's BGL overloads found by
+/// argument-dependent lookup, which count removed elements. Faces must be
 /// triangles; the accessors throw kintsugi::invalid_input otherwise.
 
 #include <kintsugi/core/concepts.hpp>
@@ -30,8 +33,11 @@ struct mesh_traits<CGAL::Surface_mesh<P>> {
 
     static void require_dense(const SM& m) {
         if (m.has_garbage())
-            throw invalid_input(
-                "kintsugi: CGAL::Surface_mesh has removed elements; call collect_garbage() before passing it");
+            throw invalid_input("kintsugi: CGAL::Surface_mesh has removed elements (" +
+                                std::to_string(m.number_of_removed_vertices()) + " vertices, " +
+                                std::to_string(m.number_of_removed_faces()) +
+                                " faces) that would leave holes in its indices; call collect_garbage() before "
+                                "passing it");
     }
     static std::size_t num_vertices(const SM& m) {
         require_dense(m);

@@ -87,11 +87,11 @@ template <TriangleMesh M>
         return m;
     } else {
         IndexedMesh out;
-        const std::size_t nv = num_vertices(m), nf = num_faces(m);
+        const std::size_t nv = kintsugi::num_vertices(m), nf = kintsugi::num_faces(m);
         out.vertices.resize(nv);
         out.faces.resize(nf);
-        for (std::size_t v = 0; v < nv; ++v) out.vertices[v] = vertex_position(m, v);
-        for (std::size_t f = 0; f < nf; ++f) out.faces[f] = face_at(m, f);
+        for (std::size_t v = 0; v < nv; ++v) out.vertices[v] = kintsugi::vertex_position(m, v);
+        for (std::size_t f = 0; f < nf; ++f) out.faces[f] = kintsugi::face_at(m, f);
         return out;
     }
 }
@@ -103,9 +103,9 @@ template <PointSet P>
         return p;
     } else {
         PointCloud out;
-        out.points = gather_points(p);
-        out.normals = gather_normals(p);
-        out.radii = gather_radii(p);
+        out.points = kintsugi::gather_points(p);
+        out.normals = kintsugi::gather_normals(p);
+        out.radii = kintsugi::gather_radii(p);
         return out;
     }
 }

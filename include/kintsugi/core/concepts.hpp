@@ -118,9 +118,9 @@ void append_surfel(T& t, const Vec3& p, const Vec3& n, Scalar r) {
 /// Copies the positions into a contiguous vector (the internal layout).
 template <PointSet T>
 [[nodiscard]] std::vector<Vec3> gather_points(const T& t) {
-    const std::size_t n = num_points(t);
+    const std::size_t n = kintsugi::num_points(t);
     std::vector<Vec3> out(n);
-    for (std::size_t i = 0; i < n; ++i) out[i] = point_at(t, i);
+    for (std::size_t i = 0; i < n; ++i) out[i] = kintsugi::point_at(t, i);
     return out;
 }
 
@@ -129,10 +129,10 @@ template <PointSet T>
 [[nodiscard]] std::vector<Vec3> gather_normals(const T& t) {
     std::vector<Vec3> out;
     if constexpr (OrientedPointSet<T>) {
-        if (!has_normals(t)) return out;
-        const std::size_t n = num_points(t);
+        if (!kintsugi::has_normals(t)) return out;
+        const std::size_t n = kintsugi::num_points(t);
         out.resize(n);
-        for (std::size_t i = 0; i < n; ++i) out[i] = normal_at(t, i);
+        for (std::size_t i = 0; i < n; ++i) out[i] = kintsugi::normal_at(t, i);
     }
     return out;
 }

@@ -46,9 +46,9 @@ struct ProgressEvent {
 /// Progress reporting and cancellation for one run.
 struct RunControl {
     /// Called on the calling thread; return false to cancel. May be empty.
-    std::function<bool(const ProgressEvent&)> progress;
-    /// A stop request on this token cancels the run.
-    std::stop_token stop;
+    std::function<bool(const ProgressEvent&)> progress = {};
+    /// A stop request on this token cancels the run. Default: no stop possible.
+    std::stop_token stop = {};
 };
 
 /// Wall-clock time of one stage, in seconds.

@@ -112,11 +112,11 @@ inline void taubin_validate(const TaubinParams& p, std::size_t nv, const std::ve
 ///         stopped through params.control, the mesh is untouched.
 template <MutableTriangleMesh M>
 TaubinResult smooth_taubin(M& mesh, const std::vector<std::uint8_t>& movable = {}, const TaubinParams& params = {}) {
-    const std::size_t nv = num_vertices(mesh);
+    const std::size_t nv = kintsugi::num_vertices(mesh);
     detail::taubin_validate(params, nv, movable);
     std::vector<Vec3> positions(nv);
     for (Index v = 0; v < nv; ++v) {
-        positions[v] = vertex_position(mesh, v);
+        positions[v] = kintsugi::vertex_position(mesh, v);
         if (!positions[v].allFinite())
             throw invalid_input("kintsugi::smooth_taubin: vertex " + std::to_string(v) +
                                 " has a NaN or infinite coordinate");
@@ -133,7 +133,7 @@ TaubinResult smooth_taubin(M& mesh, const std::vector<std::uint8_t>& movable = {
     }
     if (params.iterations > 0)
         for (Index v = 0; v < nv; ++v)
-            if (movable.empty() || movable[v] != 0) set_vertex_position(mesh, v, positions[v]);
+            if (movable.empty() || movable[v] != 0) kintsugi::set_vertex_position(mesh, v, positions[v]);
     return out;
 }
 

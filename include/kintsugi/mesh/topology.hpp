@@ -60,7 +60,7 @@ public:
     explicit MeshTopology(const M& m) {
         const std::size_t nf = kintsugi::num_faces(m);
         std::vector<Face> faces(nf);
-        for (std::size_t f = 0; f < nf; ++f) faces[f] = face_at(m, f);
+        for (std::size_t f = 0; f < nf; ++f) faces[f] = kintsugi::face_at(m, f);
         build(kintsugi::num_vertices(m), faces);
     }
 

@@ -108,7 +108,7 @@ template <TriangleMesh A, TriangleMesh B>
     if constexpr (std::is_same_v<A, IndexedMesh> && std::is_same_v<B, IndexedMesh>) {
         return detail::denoise_metrics(result, truth);
     } else {
-        return detail::denoise_metrics(to_indexed_mesh(result), to_indexed_mesh(truth));
+        return detail::denoise_metrics(kintsugi::to_indexed_mesh(result), kintsugi::to_indexed_mesh(truth));
     }
 }
 

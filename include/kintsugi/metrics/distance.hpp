@@ -510,8 +510,8 @@ template <TriangleMesh A, TriangleMesh B>
 [[nodiscard]] DistanceReport compare(const A& a, const B& reference, const DistanceParams& params = {}) {
     constexpr const char* fn = "kintsugi::compare";
     detail::validate_distance_params(params, fn);
-    const IndexedMesh ma = to_indexed_mesh(a);
-    const IndexedMesh mb = to_indexed_mesh(reference);
+    const IndexedMesh ma = kintsugi::to_indexed_mesh(a);
+    const IndexedMesh mb = kintsugi::to_indexed_mesh(reference);
     if (!ma.vertices.empty() && ma.faces.empty())
         throw invalid_input(std::string(fn) + ": mesh A has no faces; use kintsugi::compare_points for a point set");
     detail::validate_distance_mesh(ma, fn, "mesh A");
@@ -536,10 +536,10 @@ template <PointSet A, TriangleMesh B>
 [[nodiscard]] DistanceReport compare_points(const A& a, const B& reference, const DistanceParams& params = {}) {
     constexpr const char* fn = "kintsugi::compare_points";
     detail::validate_distance_params(params, fn);
-    const std::vector<Vec3> pts = gather_points(a);
-    const std::vector<Vec3> normals = gather_normals(a);
+    const std::vector<Vec3> pts = kintsugi::gather_points(a);
+    const std::vector<Vec3> normals = kintsugi::gather_normals(a);
     detail::validate_points(pts, fn, "point set A");
-    const IndexedMesh mb = to_indexed_mesh(reference);
+    const IndexedMesh mb = kintsugi::to_indexed_mesh(reference);
     detail::validate_distance_mesh(mb, fn, "the reference mesh B");
     return detail::compare_points_impl(pts, normals.size() == pts.size() ? normals : std::vector<Vec3>{}, mb, params);
 }
@@ -555,12 +555,12 @@ template <PointSet A, TriangleMesh B>
 template <PointSet P, TriangleMesh M>
 [[nodiscard]] std::vector<Scalar> distances_to_mesh(const P& points, const M& mesh) {
     constexpr const char* fn = "kintsugi::distances_to_mesh";
-    const std::vector<Vec3> pts = gather_points(points);
+    const std::vector<Vec3> pts = kintsugi::gather_points(points);
     for (std::size_t i = 0; i < pts.size(); ++i)
         if (!pts[i].allFinite())
             throw invalid_input(std::string(fn) + ": point " + std::to_string(i) +
                                 " has a NaN or infinite coordinate; remove or fix it");
-    const IndexedMesh m = to_indexed_mesh(mesh);
+    const IndexedMesh m = kintsugi::to_indexed_mesh(mesh);
     detail::validate_distance_mesh(m, fn, "the mesh");
     std::vector<Scalar> out(pts.size());
     if (pts.empty()) return out;

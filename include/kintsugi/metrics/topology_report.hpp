@@ -248,7 +248,7 @@ template <TriangleMesh M>
         check(mesh.faces, mesh.vertices.size());
         return detail::topology_report(mesh.vertices, mesh.faces);
     } else {
-        const IndexedMesh m = to_indexed_mesh(mesh);
+        const IndexedMesh m = kintsugi::to_indexed_mesh(mesh);
         check(m.faces, m.vertices.size());
         return detail::topology_report(m.vertices, m.faces);
     }

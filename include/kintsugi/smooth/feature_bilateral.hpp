@@ -417,7 +417,7 @@ template <TriangleMesh M>
     constexpr const char* fn = "kintsugi::detect_sharp_features";
     detail::fbs::check_detection(fn, params);
     const detail::fbs::SpatialOrder so = [&] {
-        const IndexedMesh input = to_indexed_mesh(mesh);
+        const IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
         detail::fbs::check_mesh(fn, input);
         return detail::fbs::spatial_order(input);
     }();
@@ -477,7 +477,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
     fbs::check_count(fn, "normal_iterations", params.normal_iterations);
     fbs::check_count(fn, "vertex_iterations", params.vertex_iterations);
     fbs::SpatialOrder so = [&] {
-        const IndexedMesh input = to_indexed_mesh(mesh);
+        const IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
         fbs::check_mesh(fn, input);
         return fbs::spatial_order(input);
     }();
@@ -545,7 +545,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         cancelled.faces = result.faces;
         return cancelled;
     }
-    for (std::size_t v = 0; v < m.vertices.size(); ++v) set_vertex_position(mesh, v, m.vertices[so.order[v]]);
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) kintsugi::set_vertex_position(mesh, v, m.vertices[so.order[v]]);
     return result;
 }
 

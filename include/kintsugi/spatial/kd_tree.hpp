@@ -90,14 +90,14 @@ public:
     /// @throws invalid_input if a coordinate is NaN or infinite.
     template <PointSet P>
     explicit KdTree(const P& points) {
-        init(gather_points(points), KdTreeParams{});
+        init(kintsugi::gather_points(points), KdTreeParams{});
     }
 
     /// Builds the tree over any PointSet with the given options.
     /// @throws invalid_input if a coordinate is NaN or infinite, or leaf_size is 0.
     template <PointSet P>
     KdTree(const P& points, const KdTreeParams& params) {
-        init(gather_points(points), params);
+        init(kintsugi::gather_points(points), params);
     }
 
     /// Builds the tree over positions moved in.

@@ -141,7 +141,7 @@ public:
     ///         [1, 12], a negative/NaN cube_side, or a point outside the given cube
     template <PointSet P>
     explicit Octree(const P& points, const OctreeParams& params = {}) {
-        build(gather_points(points), params);
+        build(kintsugi::gather_points(points), params);
     }
     /// Same over positions already in the internal layout.
     explicit Octree(const std::vector<Vec3>& points, const OctreeParams& params = {}) { build(points, params); }

@@ -1,0 +1,31 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+// A CGAL::Surface_mesh with a removed face or vertex (no collect_garbage()): smoothing and
+// feature detection refuse it clearly (they used to crash) and leave it untouched.
+#include <doctest/doctest.h>
+
+#include <kintsugi/smooth/feature_bilateral.hpp>
+
+#include "metrics/mesh_fixtures.hpp"
+
+namespace ks = kintsugi;
+using fixtures::SurfaceMesh;
+
+TEST_CASE("smooth: a Surface_mesh with removed elements is refused and left untouched") {
+    const ks::IndexedMesh sphere = fixtures::uv_sphere(8, 12);
+    for (const bool remove_face : {true, false}) {
+        CAPTURE(remove_face);
+        SurfaceMesh bad = fixtures::surface_mesh_with_garbage(sphere, remove_face);
+        const auto refused = doctest::Contains("call collect_garbage()");
+        CHECK_THROWS_WITH_AS((void)ks::smooth_feature_bilateral(bad), refused, ks::invalid_input);
+        CHECK_THROWS_WITH_AS((void)ks::detect_sharp_features(bad), refused, ks::invalid_input);
+        for (std::size_t v = 0; v < sphere.vertices.size(); ++v)
+            CHECK(ks::detail::to_vec3(bad.point(SurfaceMesh::Vertex_index(static_cast<SurfaceMesh::size_type>(v)))) ==
+                  sphere.vertices[v]);
+        bad.collect_garbage();
+        const auto r = ks::smooth_feature_bilateral(bad);
+        CHECK(r.status == ks::Status::ok);
+        CHECK(r.faces == sphere.faces.size() - (remove_face ? 1 : 0));
+    }
+}
