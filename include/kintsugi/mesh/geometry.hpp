@@ -12,6 +12,7 @@
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
@@ -44,6 +45,25 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
     return (m.vertices[t[1]] - a).cross(m.vertices[t[2]] - a);
 }
 
+/// face_cross of face f computed on its corners scaled by 2^-shift, where shift brings the
+/// longest edge component near 1, so that neither the products overflow (coordinates
+/// above ~1e154) nor underflow (below ~1e-154). The true cross product is the result
+/// times 2^(2 shift); its direction is exact.
+inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
+    const Face& t = m.faces[f];
+    const Vec3& a = m.vertices[t[0]];
+    const Vec3& b = m.vertices[t[1]];
+    const Vec3& c = m.vertices[t[2]];
+    const Vec3 u = b / 2 - a / 2, v = c / 2 - a / 2;  // halved: b - a may overflow
+    const Scalar big = std::max(u.cwiseAbs().maxCoeff(), v.cwiseAbs().maxCoeff());
+    shift = big > 0 && std::isfinite(big) ? std::ilogb(big) + 1 : 0;
+    const Scalar s = std::ldexp(Scalar(1), -shift);
+    // u, v halved: the cross product is 4 times too small; folded into the shift.
+    const Vec3 us = u * s, vs = v * s;
+    shift += 1;
+    return us.cross(vs);
+}
+
 }  // namespace detail
 
 /// @brief Unit normal of face f, following its orientation (right-hand rule).
@@ -59,7 +79,8 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
             throw invalid_input("kintsugi::face_normal: face " + std::to_string(f) + " uses vertex " +
                                 std::to_string(m.faces[f][k]) + " but the mesh has " +
                                 std::to_string(m.vertices.size()) + " vertices; fix the face");
-    const Vec3 c = detail::face_cross(m, f);
+    int shift = 0;
+    const Vec3 c = detail::face_cross_scaled(m, f, shift);
     const Scalar n = c.norm();
     return n > 0 && std::isfinite(n) ? Vec3(c / n) : Vec3::Zero();
 }
@@ -70,7 +91,8 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
     detail::check_face_indices(m, "kintsugi::face_normals");
     std::vector<Vec3> out(m.faces.size());
     for (std::size_t f = 0; f < m.faces.size(); ++f) {
-        const Vec3 c = detail::face_cross(m, f);
+        int shift = 0;
+        const Vec3 c = detail::face_cross_scaled(m, f, shift);
         const Scalar n = c.norm();
         out[f] = n > 0 && std::isfinite(n) ? Vec3(c / n) : Vec3::Zero();
     }
@@ -82,7 +104,11 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
 [[nodiscard]] inline std::vector<Scalar> face_areas(const IndexedMesh& m) {
     detail::check_face_indices(m, "kintsugi::face_areas");
     std::vector<Scalar> out(m.faces.size());
-    for (std::size_t f = 0; f < m.faces.size(); ++f) out[f] = detail::face_cross(m, f).norm() / 2;
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+        int shift = 0;
+        const Scalar twice = detail::face_cross_scaled(m, f, shift).norm();
+        out[f] = std::ldexp(twice, 2 * shift - 1);  // +inf when the true area exceeds double's range
+    }
     return out;
 }
 
@@ -93,9 +119,18 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
 /// @throws invalid_input if a face uses a vertex index out of range.
 [[nodiscard]] inline std::vector<Vec3> vertex_normals(const IndexedMesh& m) {
     detail::check_face_indices(m, "kintsugi::vertex_normals");
+    // Any magnitude: the crosses of a copy rescaled by a power of two (same ratios).
+    const detail::ScaleFrame frame = detail::scale_frame(m.vertices);
+    IndexedMesh local;
+    if (!frame.identity()) {
+        local.vertices = m.vertices;
+        frame.to_local(local.vertices);
+        local.faces = m.faces;
+    }
+    const IndexedMesh& mm = frame.identity() ? m : local;
     std::vector<Vec3> out(m.vertices.size(), Vec3::Zero());
     for (std::size_t f = 0; f < m.faces.size(); ++f) {
-        const Vec3 c = detail::face_cross(m, f);
+        const Vec3 c = detail::face_cross(mm, f);
         const Face& t = m.faces[f];
         out[t[0]] += c;
         if (t[1] != t[0]) out[t[1]] += c;
@@ -116,9 +151,13 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
     detail::check_face_indices(m, "kintsugi::mean_edge_length");
     if (m.faces.empty()) return 0;
     const MeshTopology topo(m.vertices.size(), m.faces);
+    // Any magnitude: lengths of the halved coordinates (a difference of two near ±DBL_MAX
+    // overflows), scaled by a power of two when squares would leave double's range.
+    const detail::ScaleFrame frame = detail::scale_frame(m.vertices);
     Scalar sum = 0;
-    for (const auto& e : topo.edges()) sum += (m.vertices[e[0]] - m.vertices[e[1]]).norm();
-    return sum / static_cast<Scalar>(topo.num_edges());
+    for (const auto& e : topo.edges())
+        sum += (frame.to_local(m.vertices[e[0]]) - frame.to_local(m.vertices[e[1]])).norm();
+    return frame.to_world(sum / static_cast<Scalar>(topo.num_edges()));
 }
 
 /// @brief Axis-aligned bounding box of a set of points (empty box for no points).
@@ -134,9 +173,13 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
 /// @throws invalid_input if a face uses a vertex index out of range.
 [[nodiscard]] inline Scalar signed_volume(const IndexedMesh& m) {
     detail::check_face_indices(m, "kintsugi::signed_volume");
+    // Any magnitude: summed on the copy rescaled by 2^-shift, then times 2^(3 shift)
+    // (+-inf when the true volume exceeds double's range).
+    const detail::ScaleFrame frame = detail::scale_frame(m.vertices);
     Scalar v = 0;
-    for (const Face& t : m.faces) v += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
-    return v / 6;
+    for (const Face& t : m.faces)
+        v += frame.to_local(m.vertices[t[0]]).dot(frame.to_local(m.vertices[t[1]]).cross(frame.to_local(m.vertices[t[2]])));
+    return std::ldexp(v / 6, 3 * frame.shift);
 }
 
 }  // namespace kintsugi

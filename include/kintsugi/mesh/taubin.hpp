@@ -15,6 +15,7 @@
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
@@ -122,6 +123,9 @@ TaubinResult smooth_taubin(M& mesh, const std::vector<std::uint8_t>& movable = {
                                 " has a NaN or infinite coordinate");
     }
     const MeshTopology topo(mesh);
+    // Any magnitude: sums of coordinates near 1e308 overflow; a power-of-two rescaling is exact.
+    const detail::ScaleFrame frame = detail::scale_frame(positions);
+    frame.to_local(positions);
     detail::Progress progress(params.control);
     TaubinResult out;
     try {
@@ -131,6 +135,7 @@ TaubinResult smooth_taubin(M& mesh, const std::vector<std::uint8_t>& movable = {
     } catch (const detail::cancelled_exception&) {
         return TaubinResult{Status::cancelled, 0, {}};
     }
+    frame.to_world(positions);
     if (params.iterations > 0)
         for (Index v = 0; v < nv; ++v)
             if (movable.empty() || movable[v] != 0) kintsugi::set_vertex_position(mesh, v, positions[v]);

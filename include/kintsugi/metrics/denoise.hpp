@@ -14,6 +14,7 @@
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/types.hpp>
 
 #include <Eigen/Geometry>
@@ -64,6 +65,16 @@ inline DenoiseMetrics denoise_metrics(const IndexedMesh& r, const IndexedMesh& t
         if (!r.vertices[v].allFinite() || !t.vertices[v].allFinite())
             throw invalid_input(std::string(fn) + ": vertex " + std::to_string(v) +
                                 " has a NaN or infinite coordinate; remove or fix it");
+    // Any magnitude: squared lengths of 1e154 and more overflow, so both meshes are
+    // rescaled by one power of two (the angles do not change, the RMS is mapped back).
+    if (const ScaleFrame frame = scale_frame(r.vertices, t.vertices); !frame.identity()) {
+        IndexedMesh rl = r, tl = t;
+        frame.to_local(rl.vertices);
+        frame.to_local(tl.vertices);
+        DenoiseMetrics local = denoise_metrics(rl, tl);
+        local.vertex_rms = frame.to_world(local.vertex_rms);
+        return local;
+    }
 
     DenoiseMetrics m;
     double sum2 = 0;

@@ -24,6 +24,7 @@
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
@@ -355,6 +356,19 @@ inline DirectedDistance summarize(std::vector<double>& d, double extra_max, doub
     return r;
 }
 
+/// Lengths of a report computed in `frame`'s local coordinates, back in world units.
+inline void report_to_world(DistanceReport& r, const ScaleFrame& frame) {
+    if (frame.identity()) return;
+    r.diagonal = frame.to_world(r.diagonal);
+    r.chamfer = frame.to_world(r.chamfer);
+    for (DirectedDistance* d : {&r.a_to_b, &r.b_to_a}) {
+        d->mean = frame.to_world(d->mean);
+        d->rms = frame.to_world(d->rms);
+        d->p99 = frame.to_world(d->p99);
+        d->hausdorff = frame.to_world(d->hausdorff);
+    }
+}
+
 inline void finish_report(DistanceReport& r) {
     r.chamfer = (r.a_to_b.mean + r.b_to_a.mean) / 2;
     const double p = r.a_to_b.fscore_part, q = r.b_to_a.fscore_part;
@@ -510,13 +524,19 @@ template <TriangleMesh A, TriangleMesh B>
 [[nodiscard]] DistanceReport compare(const A& a, const B& reference, const DistanceParams& params = {}) {
     constexpr const char* fn = "kintsugi::compare";
     detail::validate_distance_params(params, fn);
-    const IndexedMesh ma = kintsugi::to_indexed_mesh(a);
-    const IndexedMesh mb = kintsugi::to_indexed_mesh(reference);
+    IndexedMesh ma = kintsugi::to_indexed_mesh(a);
+    IndexedMesh mb = kintsugi::to_indexed_mesh(reference);
     if (!ma.vertices.empty() && ma.faces.empty())
         throw invalid_input(std::string(fn) + ": mesh A has no faces; use kintsugi::compare_points for a point set");
+    // Any magnitude: both copies rescaled by one power of two, lengths mapped back.
+    const detail::ScaleFrame frame = detail::scale_frame(ma.vertices, mb.vertices);
+    frame.to_local(ma.vertices);
+    frame.to_local(mb.vertices);
     detail::validate_distance_mesh(ma, fn, "mesh A");
     detail::validate_distance_mesh(mb, fn, "the reference mesh B");
-    return detail::compare_meshes(ma, mb, params);
+    DistanceReport r = detail::compare_meshes(ma, mb, params);
+    detail::report_to_world(r, frame);
+    return r;
 }
 
 /// @brief Distances between a point set A and a reference triangle mesh B: A's points
@@ -536,12 +556,18 @@ template <PointSet A, TriangleMesh B>
 [[nodiscard]] DistanceReport compare_points(const A& a, const B& reference, const DistanceParams& params = {}) {
     constexpr const char* fn = "kintsugi::compare_points";
     detail::validate_distance_params(params, fn);
-    const std::vector<Vec3> pts = kintsugi::gather_points(a);
+    std::vector<Vec3> pts = kintsugi::gather_points(a);
     const std::vector<Vec3> normals = kintsugi::gather_normals(a);
     detail::validate_points(pts, fn, "point set A");
-    const IndexedMesh mb = kintsugi::to_indexed_mesh(reference);
+    IndexedMesh mb = kintsugi::to_indexed_mesh(reference);
+    const detail::ScaleFrame frame = detail::scale_frame(pts, mb.vertices);  // any magnitude
+    frame.to_local(pts);
+    frame.to_local(mb.vertices);
     detail::validate_distance_mesh(mb, fn, "the reference mesh B");
-    return detail::compare_points_impl(pts, normals.size() == pts.size() ? normals : std::vector<Vec3>{}, mb, params);
+    DistanceReport r =
+        detail::compare_points_impl(pts, normals.size() == pts.size() ? normals : std::vector<Vec3>{}, mb, params);
+    detail::report_to_world(r, frame);
+    return r;
 }
 
 /// @brief Exact unsigned distance from each point to the nearest point of the mesh
@@ -555,18 +581,21 @@ template <PointSet A, TriangleMesh B>
 template <PointSet P, TriangleMesh M>
 [[nodiscard]] std::vector<Scalar> distances_to_mesh(const P& points, const M& mesh) {
     constexpr const char* fn = "kintsugi::distances_to_mesh";
-    const std::vector<Vec3> pts = kintsugi::gather_points(points);
+    std::vector<Vec3> pts = kintsugi::gather_points(points);
     for (std::size_t i = 0; i < pts.size(); ++i)
         if (!pts[i].allFinite())
             throw invalid_input(std::string(fn) + ": point " + std::to_string(i) +
                                 " has a NaN or infinite coordinate; remove or fix it");
-    const IndexedMesh m = kintsugi::to_indexed_mesh(mesh);
+    IndexedMesh m = kintsugi::to_indexed_mesh(mesh);
+    const detail::ScaleFrame frame = detail::scale_frame(pts, m.vertices);  // any magnitude
+    frame.to_local(pts);
+    frame.to_local(m.vertices);
     detail::validate_distance_mesh(m, fn, "the mesh");
     std::vector<Scalar> out(pts.size());
     if (pts.empty()) return out;
     const detail::TriangleDistance tree(m);
     const auto hits = detail::closest_points(tree, pts, nullptr);
-    for (std::size_t i = 0; i < pts.size(); ++i) out[i] = hits[i].distance;
+    for (std::size_t i = 0; i < pts.size(); ++i) out[i] = frame.to_world(hits[i].distance);
     return out;
 }
 

@@ -51,6 +51,7 @@
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/normals/detail/estimate_normals_impl.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
@@ -146,7 +147,7 @@ NormalResult estimate_normals(P& points, const NormalParams& params = {}) {
     if (params.method != NormalMethod::pca && params.method != NormalMethod::jet)
         throw invalid_input(std::string(fn) + ": params.method is not a NormalMethod (pca or jet)");
     const bool jet = params.method == NormalMethod::jet;
-    const std::size_t n = num_points(points);
+    const std::size_t n = kintsugi::num_points(points);
     detail::normals::validate_common(fn, n, params.k, 3);
     if (jet && params.k < 5)
         throw invalid_input(std::string(fn) + ": params.k = " + std::to_string(params.k) +
@@ -155,8 +156,9 @@ NormalResult estimate_normals(P& points, const NormalParams& params = {}) {
     if (jet && n < 6)
         throw invalid_input(std::string(fn) + ": the point set has " + std::to_string(n) +
                             " points; jet fitting needs at least 6");
-    std::vector<Vec3> pts = gather_points(points);
+    std::vector<Vec3> pts = kintsugi::gather_points(points);
     detail::normals::validate_points(fn, pts);
+    detail::scale_frame(pts).to_local(pts);  // any magnitude: exact power-of-two rescaling
 
     NormalResult result;
     result.points = n;
@@ -200,13 +202,14 @@ template <NormalWritablePointSet P>
     requires OrientedPointSet<P>
 NormalResult orient_normals(P& points, const NormalParams& params = {}) {
     constexpr const char* fn = "kintsugi::orient_normals";
-    const std::size_t n = num_points(points);
+    const std::size_t n = kintsugi::num_points(points);
     detail::normals::validate_common(fn, n, params.k, 3);
-    if (!has_normals(points))
+    if (!kintsugi::has_normals(points))
         throw invalid_input(std::string(fn) + ": the point set has no normals; call kintsugi::estimate_normals instead");
-    std::vector<Vec3> pts = gather_points(points);
+    std::vector<Vec3> pts = kintsugi::gather_points(points);
     detail::normals::validate_points(fn, pts);
-    std::vector<Vec3> normals = gather_normals(points);
+    detail::scale_frame(pts).to_local(pts);  // any magnitude: exact power-of-two rescaling
+    std::vector<Vec3> normals = kintsugi::gather_normals(points);
     for (std::size_t i = 0; i < n; ++i)
         if (!normals[i].allFinite() || normals[i].squaredNorm() == 0)
             throw invalid_input(std::string(fn) + ": normal " + std::to_string(i) +

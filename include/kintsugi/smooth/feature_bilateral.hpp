@@ -146,6 +146,7 @@
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
@@ -326,12 +327,18 @@ inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
 struct SpatialOrder {
     IndexedMesh mesh;
     std::vector<Index> order;
+    /// The copy's power-of-two rescaling (any magnitude works; see core/frame.hpp).
+    ScaleFrame frame;
 };
 
 inline SpatialOrder spatial_order(const IndexedMesh& m) {
     const std::size_t nv = m.vertices.size(), nf = m.faces.size();
+    SpatialOrder out;
+    out.frame = scale_frame(m.vertices);
+    std::vector<Vec3> local = m.vertices;
+    out.frame.to_local(local);
     Vec3 lo = Vec3::Constant(std::numeric_limits<Scalar>::max()), hi = -lo;
-    for (const Vec3& p : m.vertices) {
+    for (const Vec3& p : local) {
         lo = lo.cwiseMin(p);
         hi = hi.cwiseMax(p);
     }
@@ -351,10 +358,10 @@ inline SpatialOrder spatial_order(const IndexedMesh& m) {
         return key;
     };
     std::vector<std::pair<std::uint64_t, Index>> vk(nv), fk(nf);
-    parallel_for(0, nv, [&](std::size_t v) { vk[v] = {morton(m.vertices[v]), v}; }, 4096);
+    parallel_for(0, nv, [&](std::size_t v) { vk[v] = {morton(local[v]), v}; }, 4096);
     parallel_for(0, nf, [&](std::size_t f) {
         const Face& t = m.faces[f];
-        fk[f] = {morton((m.vertices[t[0]] + m.vertices[t[1]] + m.vertices[t[2]]) / 3), f};
+        fk[f] = {morton((local[t[0]] + local[t[1]] + local[t[2]]) / 3), f};
     }, 4096);
 #ifdef KINTSUGI_PARALLEL_TBB
     tbb::parallel_sort(vk.begin(), vk.end());  // unique (key, index) pairs: one result
@@ -363,13 +370,12 @@ inline SpatialOrder spatial_order(const IndexedMesh& m) {
     std::sort(vk.begin(), vk.end());
     std::sort(fk.begin(), fk.end());
 #endif
-    SpatialOrder out;
     out.order.resize(nv);
     out.mesh.vertices.resize(nv);
     out.mesh.faces.resize(nf);
     for (std::size_t k = 0; k < nv; ++k) {
         out.order[vk[k].second] = k;
-        out.mesh.vertices[k] = m.vertices[vk[k].second];
+        out.mesh.vertices[k] = local[vk[k].second];
     }
     for (std::size_t k = 0; k < nf; ++k) {
         const Face& t = m.faces[fk[k].second];
@@ -431,7 +437,7 @@ template <TriangleMesh M>
         progress.stage("features", 0.05, 1.0);
         detail::fbs::Workspace ws;
         auto fd = detail::fbs::run_detection(m, topo, L, detail::fbs::used_vertices(m), params, progress, ws);
-        result.features = detail::fbs::to_public(std::move(fd), L);
+        result.features = detail::fbs::to_public(std::move(fd), so.frame.to_world(L));
         detail::fbs::restore_order(result.features, so.order);
         result.timings = progress.finish();
     } catch (const detail::cancelled_exception&) {
@@ -528,7 +534,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
                     if (const auto id = topo.find_edge(e[0], e[1])) barriers.sharp_edge[*id] = 1;
                 barriers.feature_vertices = edge_vertices;
             }
-            result.features = fbs::to_public(std::move(fd), L);
+            result.features = fbs::to_public(std::move(fd), so.frame.to_world(L));
             fbs::restore_order(result.features, so.order);
         }
         progress.stage("face smoothing", params.features ? 0.5 : 0.02, 1.0);
@@ -545,7 +551,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         cancelled.faces = result.faces;
         return cancelled;
     }
-    for (std::size_t v = 0; v < m.vertices.size(); ++v) kintsugi::set_vertex_position(mesh, v, m.vertices[so.order[v]]);
+    for (std::size_t v = 0; v < m.vertices.size(); ++v)
+        kintsugi::set_vertex_position(mesh, v, so.frame.to_world(m.vertices[so.order[v]]));
     return result;
 }
 

@@ -21,6 +21,7 @@
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 
 #include <nanoflann.hpp>
 
@@ -135,6 +136,9 @@ public:
         idx.resize(kq);
         d2.resize(kq);
         const std::size_t found = impl_->index->knnSearch(q.data(), kq, idx.data(), d2.data());
+        if (found < kq)  // nanoflann drops points at an infinite squared distance
+            throw invalid_input("kintsugi::KdTree::knn: the query point is so far from the points that their "
+                                "squared distances overflow double precision; query nearer the points");
         out.resize(found);
         // nanoflann returns them by increasing distance; only equal distances need
         // the sort (by index), so it is skipped when there are none.
@@ -204,6 +208,19 @@ private:
             if (!points[i].allFinite())
                 throw invalid_input("kintsugi::KdTree: point " + std::to_string(i) +
                                     " has a NaN or infinite coordinate; remove it first");
+        // Squared distances must stay finite and above the normal range: the box's
+        // longest side within [2^-480, 2^510] (about 1e-144 to 3e153), or all points equal.
+        BoundingBox box;
+        for (const Vec3& p : points) box.extend(p);
+        if (!points.empty()) {
+            const Scalar half = (box.max / 2 - box.min / 2).maxCoeff();
+            if (half > std::ldexp(Scalar(1), 509) || (half > 0 && half < std::ldexp(Scalar(1), -481)))
+                throw invalid_input("kintsugi::KdTree: the points span " + detail::format_number(2 * half) +
+                                    " units, so their squared distances would " +
+                                    (half > 1 ? "overflow" : "underflow") +
+                                    " double precision; scale them into [1e-140, 1e150] first (kintsugi's "
+                                    "algorithms rescale their own copy)");
+        }
         impl_ = std::make_unique<Impl>();
         impl_->points = std::move(points);
         impl_->dataset.pts = &impl_->points;

@@ -36,6 +36,7 @@
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 
@@ -407,8 +408,14 @@ private:
                                     "or leave cube_side = 0");
         } else if (params.cube_side == 0) {
             side_ = box.extent().maxCoeff();
+            if (std::isinf(side_))
+                throw invalid_input(std::string(fn) + ": the points span more than the largest double (" +
+                                    detail::format_number(box.min.minCoeff()) + " to " +
+                                    detail::format_number(box.max.maxCoeff()) +
+                                    "); scale them down, e.g. by 2^-10, first");
             if (!(side_ > 0)) side_ = 1;
-            cube_min_ = box.center() - Vec3::Constant(side_ / 2);
+            // (min + max) / 2 overflows for two points near DBL_MAX: halve first.
+            cube_min_ = Vec3(box.min / 2 + box.max / 2) - Vec3::Constant(side_ / 2);
         } else {
             throw invalid_input(std::string(fn) + ": cube_side must be 0 (automatic) or a positive finite length, "
                                 "with a finite cube_min");
