@@ -142,10 +142,10 @@ template <PointSet T>
 [[nodiscard]] std::vector<Scalar> gather_radii(const T& t) {
     std::vector<Scalar> out;
     if constexpr (SurfelSet<T>) {
-        if (!has_radii(t)) return out;
-        const std::size_t n = num_points(t);
+        if (!kintsugi::has_radii(t)) return out;
+        const std::size_t n = kintsugi::num_points(t);
         out.resize(n);
-        for (std::size_t i = 0; i < n; ++i) out[i] = radius_at(t, i);
+        for (std::size_t i = 0; i < n; ++i) out[i] = kintsugi::radius_at(t, i);
     }
     return out;
 }

@@ -132,7 +132,7 @@ inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& top
 template <MutableTriangleMesh M>
 FairResult fair_biharmonic(M& mesh, const std::vector<std::uint8_t>& free, const FairParams& params = {}) {
     const std::string fn = "kintsugi::fair_biharmonic: ";
-    const std::size_t nv = num_vertices(mesh);
+    const std::size_t nv = kintsugi::num_vertices(mesh);
     if (free.size() != nv)
         throw invalid_input(fn + "free has " + std::to_string(free.size()) + " entries for " + std::to_string(nv) +
                             " vertices; give one flag per vertex");
@@ -140,7 +140,7 @@ FairResult fair_biharmonic(M& mesh, const std::vector<std::uint8_t>& free, const
         throw invalid_input(fn + "delta = " + std::to_string(params.delta) + " must be finite and >= 0 (default 1e-8)");
     std::vector<Vec3> x(nv);
     for (Index v = 0; v < nv; ++v) {
-        x[v] = vertex_position(mesh, v);
+        x[v] = kintsugi::vertex_position(mesh, v);
         if (!x[v].allFinite())
             throw invalid_input(fn + "vertex " + std::to_string(v) + " has a NaN or infinite coordinate; remove it");
     }
@@ -158,7 +158,7 @@ FairResult fair_biharmonic(M& mesh, const std::vector<std::uint8_t>& free, const
     }
     if (out.faired_vertices > 0)
         for (Index v = 0; v < nv; ++v)
-            if (free[v]) set_vertex_position(mesh, v, x[v]);
+            if (free[v]) kintsugi::set_vertex_position(mesh, v, x[v]);
     return out;
 }
 
