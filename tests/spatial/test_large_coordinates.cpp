@@ -38,8 +38,9 @@ TEST_CASE("Octree: a copy scaled by 2^512, 2^665, 2^997, 2^-997 or 2^1020 has th
     // Two points near both ends of double's range: their span overflows.
     const std::vector<ks::Vec3> wide = {ks::Vec3(-1.5e308, 0, 0), ks::Vec3(1.5e308, 0, 0)};
     CHECK_THROWS_WITH_AS((void)ks::Octree(wide, ks::OctreeParams{}), doctest::Contains("span more than the largest double"), ks::invalid_input);
-    // Two points near the top of the range: the centre does not overflow.
-    const std::vector<ks::Vec3> top = {ks::Vec3(1.6e308, 0, 0), ks::Vec3(1.7e308, 1e307, 0)};
+    // Two points near the top of the range (2^1023 and 1.25 * 2^1023): the centre does not overflow.
+    const double t = std::ldexp(1.0, 1023);
+    const std::vector<ks::Vec3> top = {ks::Vec3(t, 0, 0), ks::Vec3(1.25 * t, t / 8, 0)};
     const ks::Octree tt(top, ks::OctreeParams{.max_level = 3});
     CHECK(tt.locate(top[0]) != ks::Octree::npos);
     CHECK(tt.locate(top[1]) != ks::Octree::npos);

@@ -414,8 +414,9 @@ private:
                                     detail::format_number(box.max.maxCoeff()) +
                                     "); scale them down, e.g. by 2^-10, first");
             if (!(side_ > 0)) side_ = 1;
-            // (min + max) / 2 overflows for two points near DBL_MAX: halve first.
-            cube_min_ = Vec3(box.min / 2 + box.max / 2) - Vec3::Constant(side_ / 2);
+            // (min + max) / 2 overflows for two points near DBL_MAX: then halve first.
+            const Vec3 centre = box.center().allFinite() ? box.center() : Vec3(box.min / 2 + box.max / 2);
+            cube_min_ = centre - Vec3::Constant(side_ / 2);
         } else {
             throw invalid_input(std::string(fn) + ": cube_side must be 0 (automatic) or a positive finite length, "
                                 "with a finite cube_min");
