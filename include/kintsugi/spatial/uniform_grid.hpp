@@ -63,7 +63,7 @@ public:
     /// @throws invalid_input if a coordinate is NaN or infinite, or cell is not > 0.
     template <PointSet P>
     UniformGrid(const P& points, Scalar cell) {
-        build(gather_points(points), cell);
+        build(kintsugi::gather_points(points), cell);
     }
     /// Builds the grid over positions.
     UniformGrid(const std::vector<Vec3>& points, Scalar cell) { build(points, cell); }
@@ -211,17 +211,29 @@ public:
 
     /// Calls f(index, squared distance) for every point in the cube of half side h
     /// centred at c (boundary included), in the grid's order (see the file comment).
+    /// @param max_candidates at most this many points are tested: when the cells the
+    ///        cube overlaps hold more, an evenly strided subset of them (in the grid's
+    ///        order) is, so that one query costs O(max_candidates) however dense the
+    ///        points. Default: no limit.
     /// @throws invalid_input if c has a NaN or infinite coordinate or h is NaN.
     template <class F>
-    void for_each_in_cube(const Vec3& c, Scalar h, F&& f) const {
+    void for_each_in_cube(const Vec3& c, Scalar h, F&& f, std::size_t max_candidates = no_limit) const {
         require_query(c, h, "for_each_in_cube");
+        auto test = [&](std::size_t j) {
+            const Vec3 d = point_[j] - c;
+            if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
+        };
+        if (max_candidates != no_limit && candidates(c, h, start_) > max_candidates) {
+            for_each_sampled(c, h, start_, max_candidates, test);
+            return;
+        }
         for_each_cell(c, h, [&](std::uint32_t cidx) {
-            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
-                const Vec3 d = point_[j] - c;
-                if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
-            }
+            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) test(j);
         });
     }
+
+    /// No limit on the points a query tests (see for_each_in_cube and gather).
+    static constexpr std::size_t no_limit = ~std::size_t{0};
 
     /// Calls f(index, squared distance) for every point at distance at most r from c,
     /// in the grid's order.
@@ -271,14 +283,31 @@ public:
     /// fall either side), on the cells' padded columns four points at a time (SSE2),
     /// with no branch on which points fall inside (that is as good as random, and
     /// mispredicted branches cost more than the test).
+    /// @param max_candidates as for for_each_in_cube: at most this many points tested
+    ///        (an evenly strided subset when the cells hold more); default no limit.
     /// @throws invalid_input if c has a NaN or infinite coordinate or h is NaN.
-    void gather(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {
+    void gather(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2,
+                std::size_t max_candidates = no_limit) const {
         index.clear();
         dist2.clear();
         require_query(c, h, "gather");
         std::size_t n = 0;
         const Eigen::Vector3f q = (c - lo_).cast<float>();
         const float hf = static_cast<float>(h);
+        if (max_candidates != no_limit && candidates(c, h, pad_start_) > max_candidates) {
+            index.resize(max_candidates);
+            dist2.resize(max_candidates);
+            for_each_sampled(c, h, pad_start_, max_candidates, [&](std::size_t j) {
+                const float dx = px_[j] - q.x(), dy = py_[j] - q.y(), dz = pz_[j] - q.z();
+                if (std::abs(dx) <= hf && std::abs(dy) <= hf && std::abs(dz) <= hf) {
+                    index[n] = pidx_[j];
+                    dist2[n++] = dx * dx + dy * dy + dz * dz;
+                }
+            });
+            index.resize(n);
+            dist2.resize(n);
+            return;
+        }
 #if defined(__SSE2__)
         const __m128 qx = _mm_set1_ps(q.x()), qy = _mm_set1_ps(q.y()), qz = _mm_set1_ps(q.z()), vh = _mm_set1_ps(hf);
         const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
@@ -338,6 +367,31 @@ private:
         if (!c.allFinite() || std::isnan(size))
             throw invalid_input(std::string("kintsugi::UniformGrid::") + fn +
                                 ": the query point or size has a NaN or infinite value");
+    }
+
+    /// Number of slots (first[cell] .. first[cell + 1]) in the cells a query visits.
+    std::size_t candidates(const Vec3& c, Scalar h, const std::vector<std::uint32_t>& first) const {
+        std::size_t total = 0;
+        for_each_cell(c, h, [&](std::uint32_t cell) { total += first[cell + 1] - first[cell]; });
+        return total;
+    }
+    /// Calls test(slot) for `max` slots evenly strided over the slots of the cells a
+    /// query visits (taken in the order of for_each_cell): slot k·total/max for k < max.
+    template <class Test>
+    void for_each_sampled(const Vec3& c, Scalar h, const std::vector<std::uint32_t>& first, std::size_t max,
+                          Test&& test) const {
+        const std::size_t total = candidates(c, h, first);
+        const double step = static_cast<double>(total) / static_cast<double>(max);  // > 1
+        std::size_t base = 0, k = 0;
+        for_each_cell(c, h, [&](std::uint32_t cell) {
+            const std::size_t count = first[cell + 1] - first[cell];
+            for (; k < max; ++k) {
+                const std::size_t pos = static_cast<std::size_t>(static_cast<double>(k) * step);
+                if (pos >= base + count) break;
+                test(first[cell] + (pos - base));
+            }
+            base += count;
+        });
     }
 
     /// Calls visit(cell) for every non-empty cell that may hold points of the cube of

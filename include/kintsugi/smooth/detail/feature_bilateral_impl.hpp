@@ -47,6 +47,14 @@ void blocked_for(Progress& progress, std::size_t n, double from, double to, Body
     }
 }
 
+/// Most grid points one neighbourhood query tests (UniformGrid's max_candidates), so a
+/// query costs O(1) however many faces crowd into its cells (a fan of 20K triangles
+/// around one vertex: every cube holds thousands). Ordinary meshes stay far below it
+/// (a few hundred at most); above it the query tests an evenly strided subset.
+inline constexpr std::size_t max_candidates = 2048;
+/// Most edge-to-face entries one sharp-edge-bounded walk (reach_faces) scans.
+inline constexpr std::size_t max_walk = 16 * max_candidates;
+
 /// Unit normal (zero for a degenerate face), area and centroid of every face.
 struct FaceGeometry {
     std::vector<Vec3> normal, centroid;
@@ -213,17 +221,22 @@ struct Reach {
 };
 inline Reach reach_faces(const Barriers& b, const std::vector<Vec3>& centroid, std::span<const Index> seeds,
                                  const Vec3& c, Scalar h) {
-    thread_local std::vector<std::uint32_t> mark;
+    thread_local std::vector<std::uint32_t> mark, edge_mark;
     thread_local std::vector<Index> queue;
     thread_local std::uint32_t stamp = 0;
     thread_local const std::vector<Vec3>* owner = nullptr;
-    if (mark.size() != centroid.size() || owner != &centroid) {
+    thread_local const MeshTopology* owner_topo = nullptr;
+    if (mark.size() != centroid.size() || owner != &centroid || edge_mark.size() != b.topo->num_edges() ||
+        owner_topo != b.topo) {
         mark.assign(centroid.size(), 0);
+        edge_mark.assign(b.topo->num_edges(), 0);
         stamp = 0;
         owner = &centroid;
+        owner_topo = b.topo;
     }
     if (++stamp == 0) {
         std::fill(mark.begin(), mark.end(), 0);
+        std::fill(edge_mark.begin(), edge_mark.end(), 0);
         stamp = 1;
     }
     queue.clear();
@@ -232,10 +245,16 @@ inline Reach reach_faces(const Barriers& b, const std::vector<Vec3>& centroid, s
             mark[f] = stamp;
             queue.push_back(f);
         }
-    for (std::size_t k = 0; k < queue.size(); ++k) {
+    // Each edge is expanded once (a second expansion finds nothing new), and the walk
+    // stops after max_walk edge-face entries: an edge shared by thousands of faces
+    // costs one scan, not one per face.
+    std::size_t scanned = 0;
+    for (std::size_t k = 0; k < queue.size() && scanned <= max_walk; ++k) {
         const Index f = queue[k];
         for (Index e : b.topo->face_edges(f)) {
-            if (b.sharp_edge[e]) continue;
+            if (b.sharp_edge[e] || edge_mark[e] == stamp) continue;
+            edge_mark[e] = stamp;
+            scanned += b.topo->edge_faces(e).size();
             for (Index q : b.topo->edge_faces(e))
                 if (mark[q] != stamp && (centroid[q] - c).cwiseAbs().maxCoeff() <= h) {
                     mark[q] = stamp;
@@ -306,7 +325,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
         thread_local std::vector<std::uint32_t> found;
         thread_local std::vector<Scalar> dist2;
         thread_local std::vector<float> weight;
-        grid.gather(g.centroid[t], h, found, dist2);
+        grid.gather(g.centroid[t], h, found, dist2, max_candidates);
         std::size_t n = found.size();
         weight.resize(n);
         if (barriers && (*near)[t]) {  // keep the faces reached without crossing a sharp edge
@@ -437,7 +456,7 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
     blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
         thread_local std::vector<std::uint32_t> found;
         thread_local std::vector<Scalar> dist2;
-        grid.gather(V[v], h, found, dist2);
+        grid.gather(V[v], h, found, dist2, max_candidates);
         Scalar xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;  // local sums (see filter_normals)
         for (std::size_t k = 0; k < found.size(); ++k) {
             const Vec3& n = N[found[k]];
@@ -477,8 +496,10 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
         const auto ef = topo.edge_faces(e);
         if (!st.boundary_edges && ef.size() < 2) return;
         if (st.crease_test && ef.size() >= 2) {
+            // Every pair of the edge's faces; for a non-manifold edge with more than 64
+            // faces, the pairs with one of its first 64 (bounded cost).
             Scalar min_dot = 1;
-            for (std::size_t i = 0; i < ef.size(); ++i)
+            for (std::size_t i = 0; i < std::min<std::size_t>(ef.size(), 64); ++i)
                 for (std::size_t j = i + 1; j < ef.size(); ++j) min_dot = std::min(min_dot, N[ef[i]].dot(N[ef[j]]));
             if (min_dot > crease_cos) return;
         }
@@ -541,7 +562,7 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
             const Scalar Y2 = (dir[e] - dq).squaredNorm();
             if (Y2 > 1) return;  // another feature branch (corner): g = 0
             acc += len[q] * gauss(d2, s_mef) * gauss(Y2, s_meg) * dq;
-        });
+        }, max_candidates);
         const Scalar n = acc.norm();
         if (n > 0 && std::isfinite(n)) dir_f[e] = acc / n;
     });
@@ -559,7 +580,7 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
             const Scalar w = len[q] * gauss(d2, s_ef) * gauss((proj - p).squaredNorm(), s_eg);
             acc += w * proj;
             kr += w;
-        });
+        }, max_candidates);
         if (kr > 0 && std::isfinite(kr)) out[k] = acc / kr;
     });
     for (std::size_t k = 0; k < edge_vertices.size(); ++k) V[edge_vertices[k]] = out[k];
@@ -595,7 +616,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
         near_vertex.assign(nv, 0);
         parallel_for(0, F.size(), [&](std::size_t t) {
             bool any = false;
-            fp.for_each_in_cube(g.centroid[t], reach, [&](Index, Scalar) { any = true; });
+            fp.for_each_in_cube(g.centroid[t], reach, [&](Index, Scalar) { any = true; }, max_candidates);
             near_face[t] = any;
         }, 1024);
         for (std::size_t t = 0; t < F.size(); ++t)
@@ -625,7 +646,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
             if (fixed[i] || !has_face[i]) return;
             thread_local std::vector<std::uint32_t> found;
             thread_local std::vector<Scalar> dist2;
-            grid.gather(V[i], h, found, dist2);
+            grid.gather(V[i], h, found, dist2, max_candidates);
             std::size_t n = found.size();
             if (barriers && near_vertex[i]) {  // keep the faces reached without crossing a sharp edge
                 const Reach reached = reach_faces(*barriers, g.centroid, barriers->topo->vertex_faces(i), V[i], h);
