@@ -6,6 +6,7 @@
 #include <doctest/doctest.h>
 
 #include <kintsugi/mesh/fair.hpp>
+#include <kintsugi/mesh/holes.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
@@ -24,6 +25,8 @@ TEST_CASE("mesh: a Surface_mesh with removed elements is refused and left untouc
         CHECK_THROWS_WITH_AS((void)ks::smooth_taubin(bad), refused, ks::invalid_input);
         const std::vector<std::uint8_t> free_all(sphere.vertices.size() + (remove_face ? 0 : 1), 1);
         CHECK_THROWS_WITH_AS((void)ks::fair_biharmonic(bad, free_all), refused, ks::invalid_input);
+        CHECK_THROWS_WITH_AS((void)ks::find_boundary_loops(bad), refused, ks::invalid_input);
+        CHECK_THROWS_WITH_AS((void)ks::fill_holes(bad, {}), refused, ks::invalid_input);
         for (std::size_t v = 0; v < sphere.vertices.size(); ++v)
             CHECK(ks::detail::to_vec3(bad.point(SurfaceMesh::Vertex_index(static_cast<SurfaceMesh::size_type>(v)))) ==
                   sphere.vertices[v]);

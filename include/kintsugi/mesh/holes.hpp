@@ -90,7 +90,7 @@ template <TriangleMesh M>
     if (!(params.outer_border_extent >= 0))
         throw invalid_input(fn + "outer_border_extent = " + std::to_string(params.outer_border_extent) +
                             " must be >= 0 (default 0.75; above 1 disables the outer border)");
-    const std::size_t nv = num_vertices(mesh);
+    const std::size_t nv = kintsugi::num_vertices(mesh);
     std::vector<Vec3> x(nv);
     for (Index v = 0; v < nv; ++v) {
         x[v] = vertex_position(mesh, v);
@@ -283,7 +283,7 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
     if (params.max_rounds < 1) throw invalid_input(fn + "max_rounds must be >= 1 (default 30)");
     if (!(params.fair_delta >= 0) || !std::isfinite(params.fair_delta))
         throw invalid_input(fn + "fair_delta must be finite and >= 0 (default 1e-8)");
-    const std::size_t nv0 = num_vertices(mesh), nf0 = num_faces(mesh);
+    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
     std::vector<Face> faces(nf0);
     for (Index f = 0; f < nf0; ++f) faces[f] = face_at(mesh, f);
     std::vector<Vec3> pos(nv0);
