@@ -327,9 +327,7 @@ TEST_CASE("compare: bad input") {
     SUBCASE("index out of range") {
         IndexedMesh bad = good;
         bad.faces[2][1] = 8;
-        const IndexedMesh before = bad;
         CHECK_THROWS_WITH_AS((void)ks::compare(good, bad), doctest::Contains("face 2 uses vertex 8"), ks::invalid_input);
-        CHECK(bad.faces == before.faces);
         EigenHolder e(bad);
         CHECK_THROWS_AS((void)ks::compare(e.mesh(), good), ks::invalid_input);
     }

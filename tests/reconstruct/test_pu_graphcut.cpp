@@ -212,7 +212,6 @@ TEST_CASE("reconstruct_pu_graphcut: same seed, byte-identical output with 1 and 
 TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the problem") {
     std::vector<ks::Vec3> pts, nrm;
     kintsugi_test::sample_shape(Shape{0}, 200, 0.0, 0.0, 1, pts, nrm);
-    const auto pts0 = pts;
     auto expect = [&](const std::vector<ks::Vec3>& p, const std::vector<ks::Vec3>& n, const ks::PUGraphcutParams& prm,
                       const char* what) {
         CAPTURE(what);
@@ -258,7 +257,6 @@ TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the pr
     CHECK_THROWS_WITH_AS((void)ks::reconstruct_pu_graphcut(ps), doctest::Contains("no normals"), ks::invalid_input);
     std::vector<ks::Vec3> short_n(nrm.begin(), nrm.end() - 1);
     CHECK_THROWS_AS((void)ks::reconstruct_pu_graphcut(ks::with_normals(pts, short_n)), ks::invalid_input);
-    CHECK(pts == pts0);
     // the output mesh is untouched on error
     ks::IndexedMesh out;
     out.vertices = {ks::Vec3(1, 2, 3)};
@@ -269,7 +267,6 @@ TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the pr
 TEST_CASE("reconstruct_pu_graphcut: cancellation at every stage") {
     std::vector<ks::Vec3> pts, nrm;
     kintsugi_test::sample_shape(Shape{0}, 3000, 0.001, 0.05, 2, pts, nrm);
-    const auto pts0 = pts;
     for (const std::string stage : {"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
                                     "marching_tetrahedra", "smoothing"}) {
         CAPTURE(stage);
@@ -297,7 +294,6 @@ TEST_CASE("reconstruct_pu_graphcut: cancellation at every stage") {
     ks::PUGraphcutParams p{.max_level = 6};
     p.control.stop = stop.get_token();
     CHECK(ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), p).status == ks::Status::cancelled);
-    CHECK(pts == pts0);
 }
 
 TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range scans (shipped subset)") {
@@ -625,7 +621,6 @@ TEST_CASE("reconstruct_pu_graphcut: finite coordinates of any magnitude give the
 TEST_CASE("reconstruct_pu_graphcut: progress moves through the triangulation, and a stop there cancels") {
     std::vector<ks::Vec3> pts, nrm;
     kintsugi_test::sample_shape(Shape{1}, 20000, 0.001, 0.1, 4, pts, nrm);
-    const auto pts0 = pts, nrm0 = nrm;
     // Between 35 % and 70 % (the triangulation) the callback used to be called once, at
     // the start of the stage, for any input under 32,768 supports.
     std::vector<double> inside;
@@ -666,7 +661,5 @@ TEST_CASE("reconstruct_pu_graphcut: progress moves through the triangulation, an
         CHECK(r.status == ks::Status::cancelled);
         CHECK(r.mesh.faces.empty());
         CHECK(out.vertices.size() == 1);
-        CHECK(pts == pts0);
-        CHECK(nrm == nrm0);
     }
 }
