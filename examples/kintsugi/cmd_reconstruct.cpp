@@ -85,6 +85,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ctx.end_progress();
         if (r.status == kintsugi::Status::cancelled) throw std::runtime_error("cancelled; nothing written");
         ctx.add_timings(r.timings);
+        if (r.far_points > 0)
+            ctx.notice(std::to_string(r.far_points) + " of the " + std::to_string(r.points) +
+                       " points lie apart from the rest in groups too small to be an object; they were left out");
 
         const kintsugi::TopologyReport rep = kintsugi::topology_report(r.mesh);
         sw = kcli::Stopwatch();
@@ -118,6 +121,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["sign_disagreements"] = r.sign_disagreements;
         j["same_sign_vertices"] = r.same_sign_vertices;
         j["smoothed_vertices"] = r.smoothed_vertices;
+        j["far_points"] = r.far_points;
+        j["parts"] = r.parts;
         j["vertices"] = rep.vertices;
         j["faces"] = rep.faces;
         j["components"] = rep.components;

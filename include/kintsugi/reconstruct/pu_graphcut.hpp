@@ -143,22 +143,15 @@ struct PUGraphcutParams {
     /// unsupported: 3,000 points on the torus at level 6 fill 41 % of the vertices, max
     /// 1.38 -> 0.83 %, mean 0.086 -> 0.108 %.
     Scalar fill_radius_fraction = 0.75;
-    /// Separated parts, in [0, 1]; 0 disables (one octree cube around every point, the
-    /// paper). The points are split, recursively, at every empty slab (a gap between
-    /// consecutive coordinates along x, y or z) wider than this fraction of the longest
-    /// side of their box; each part is reconstructed in its own cube (max_level and
-    /// epsilon apply to each part), and parts too small to be an object
-    /// (min_part_fraction) are left out as far outliers. A connected object projects
-    /// onto every axis without a gap, so only separate objects, far outliers, or a band
-    /// of missing data wider than a quarter of the object are split; a far point can
-    /// then enlarge the cube by a third at most. With one cube for everything, a
-    /// point 1,000 units from a sphere of radius 1 (2,000 points) made the cube 500x
-    /// too large (a 38-vertex blob), and two spheres 1,000 apart gave an empty mesh.
+    /// Separated parts, in [0, 1] (0: one octree cube around every point, the paper):
+    /// the points are split, recursively, at empty slabs (along x, y or z) wider than
+    /// this fraction of their box's longest side, and each part gets its own cube
+    /// (max_level and epsilon apply per part). A connected object has no such slab;
+    /// a far point not split off grows the cube by a third at most.
     Scalar part_gap_fraction = 0.25;
-    /// A separated part (part_gap_fraction) holding fewer points than this fraction
-    /// of the input, or fewer than min_support_points, is left out: its points are far
-    /// outliers (PUGraphcutResult::far_points). In [0, 1]; 1 % by default: a cluster
-    /// of a few stray points is not an object, and one surface needs several supports.
+    /// Separated parts holding fewer than this fraction of the points (or fewer than
+    /// min_support_points) are left out as far outliers (PUGraphcutResult::far_points);
+    /// in [0, 1], default 1 %: a few stray points are no object.
     Scalar min_part_fraction = 0.01;
 };
 
@@ -632,6 +625,13 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
 /// (untrusted_weight); mesh vertices far from every trusted support (hole fills) are
 /// placed by a thin-plate patch before step 7 (fill_radius_fraction).
 ///
+/// Far outliers and separate objects: the points are split at wide empty slabs
+/// (PUGraphcutParams::part_gap_fraction); each part large enough is reconstructed in
+/// its own octree cube, the others are counted in far_points. Each part runs in its
+/// own frame, recentred and scaled by a power of two when its coordinates lie outside
+/// [2^-32, 2^32] (in the caller's coordinates otherwise, bit for bit as before), so
+/// finite coordinates of any magnitude work.
+///
 /// Output guarantee: a closed, consistently outward-oriented 2-manifold triangle mesh
 /// without degenerate triangles (before smoothing no two vertices coincide; smoothing
 /// moves vertices but never changes the connectivity).
@@ -646,7 +646,9 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
 /// @pre at least 4 points spread in 3D, normals present, finite and non-zero.
 /// @throws invalid_input for fewer than 4 points, missing or zero normals, NaN/Inf
 ///         coordinates or normals, all points coplanar or collinear, k <= 0 or not
-///         finite, max_level outside [1, 12], epsilon <= 0. Inputs untouched.
+///         finite, max_level outside [1, 12], epsilon <= 0; and when the surface would
+///         be empty (no support labelled inside, or no separated part large enough),
+///         naming the reason and the fix. Inputs untouched.
 /// @return the mesh, counts and per-stage timings. Status::cancelled: stopped through
 ///         params.control at any stage; the mesh is empty and the input untouched.
 template <OrientedPointSet P>
