@@ -27,6 +27,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     return [o, &ctx] {
         kcli::Stopwatch sw;
         kintsugi::ReadInfo ri;
+        ctx.doing("reading " + o->input);
         const kintsugi::IndexedMesh mesh = kintsugi::read_mesh(o->input, {}, &ri);
         ctx.add_timing("read", sw.seconds());
 
@@ -51,6 +52,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                   << "\n  faces              0 (point cloud)\n";
         } else {
             sw = kcli::Stopwatch();
+            ctx.doing("computing the topology of the " + kcli::grouped(mesh.faces.size()) + " faces of " + o->input);
             const kintsugi::TopologyReport r = kintsugi::topology_report(mesh);
             ctx.add_timing("topology", sw.seconds());
             j["vertices"] = r.vertices;

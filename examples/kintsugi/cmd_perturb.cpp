@@ -30,14 +30,16 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                    "Outliers to add, as a fraction of the input point count, uniform in the bounding box "
                    "enlarged by 10 % (each side), with random unit normals")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 10.0));
+        ->check(kcli::real(0.0, 10.0));
     cmd.add_option("--noise", o->noise,
                    "Gaussian noise on every input point: sigma = noise x bounding-box diagonal (isotropic)")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(kcli::real(0.0, 1.0));
     return [o, &ctx] {
+        ctx.check_output(o->output, kintsugi::OutputKind::point_cloud);
+        ctx.doing("reading " + o->input);
         kintsugi::PointCloud cloud = kintsugi::read_point_cloud(o->input);
-        if (cloud.points.empty()) throw std::runtime_error(o->input + ": no points");
+        if (cloud.points.empty()) throw kintsugi::invalid_input(o->input + ": the file holds no points");
         const bool normals = kintsugi::has_normals(cloud);
         cloud.radii.clear();
         kintsugi::BoundingBox box;
@@ -48,17 +50,28 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         std::uniform_real_distribution<double> uni(0.0, 1.0);
         const double sigma = o->noise * box.diagonal() / std::sqrt(3.0);
         const std::size_t n = cloud.points.size();
-        if (sigma > 0)
-            for (auto& p : cloud.points) p += sigma * kintsugi::Vec3(gauss(rng), gauss(rng), gauss(rng));
+        // Options are finite and in range (kcli::real), so m <= 10 n.
         const auto m = static_cast<std::size_t>(std::llround(o->outliers * static_cast<double>(n)));
+        ctx.doing("adding " + kcli::grouped(m) + " outliers to the " + kcli::grouped(n) + " points of " + o->input);
+        constexpr std::size_t poll = 1 << 16;  // points between two looks at Ctrl-C
+        if (sigma > 0)
+            for (std::size_t i = 0; i < n; ++i) {
+                if (i % poll == 0) ctx.check_interrupted();
+                cloud.points[i] += sigma * kintsugi::Vec3(gauss(rng), gauss(rng), gauss(rng));
+            }
         const kintsugi::Vec3 c = box.center(), e = 1.1 * box.extent();
+        cloud.points.reserve(n + m);
+        if (normals) cloud.normals.reserve(n + m);
         for (std::size_t i = 0; i < m; ++i) {
+            if (i % poll == 0) ctx.check_interrupted();
             cloud.points.push_back(c + kintsugi::Vec3((uni(rng) - 0.5) * e.x(), (uni(rng) - 0.5) * e.y(),
                                                       (uni(rng) - 0.5) * e.z()));
             kintsugi::Vec3 d(gauss(rng), gauss(rng), gauss(rng));
             if (normals) cloud.normals.push_back(d.normalized());
         }
-        kintsugi::write_point_cloud(o->output, cloud);
+        ctx.check_interrupted();
+        ctx.doing("writing " + o->output);
+        kintsugi::write_point_cloud(o->output, cloud, ctx.write_options());
         auto& j = ctx.json();
         j["command"] = "perturb";
         j["input"] = o->input;

@@ -20,13 +20,9 @@ namespace {
 struct ReconstructOptions {
     std::string input, output;
     std::string method = "pu-graphcut";
-    int max_level = 8;
-    double epsilon = 4e-3;
-    double k = 10;
-    double weight_scale = 0;
-    std::size_t smoothing = 30;
-    std::string labeling = "graphcut";
-    bool inward = false;
+    kintsugi::PUGraphcutParams params;  // the library's defaults
+    std::string labeling = params.labeling == kintsugi::Labeling::sign ? "sign" : "graphcut";
+    bool inward = params.normals == kintsugi::NormalConvention::inward;
 };
 
 kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
@@ -37,53 +33,57 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("--method", o->method, "Reconstruction method")
         ->capture_default_str()
         ->check(CLI::IsMember({"pu-graphcut"}));
-    cmd.add_option("--max-level", o->max_level, "Octree depth")->capture_default_str()->check(CLI::Range(1, 12));
-    cmd.add_option("--epsilon", o->epsilon, "PU error tolerance, fraction of the longest bounding-box side")
+    auto& p = o->params;
+    cmd.add_option("--max-level", p.max_level, "Octree depth")->capture_default_str()->check(kcli::count(1, 12));
+    cmd.add_option("--epsilon", p.epsilon, "PU error tolerance, fraction of the longest bounding-box side")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
-    cmd.add_option("--k", o->k, "Terminal/edge capacity ratio of the graph cut (paper: 5-15)")
+        ->check(kcli::real(0.0, 1.0, true));
+    cmd.add_option("--k", p.k, "Terminal/edge capacity ratio of the graph cut (paper: 5-15)")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
-    cmd.add_option("--triangulation-weight-scale", o->weight_scale,
+        ->check(kcli::real(0.0, 1e6, true));
+    cmd.add_option("--triangulation-weight-scale", p.triangulation_weight_scale,
                    "Regular-triangulation weights (s r)^2: 1 is the paper (small supports hidden), 0 keeps all")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1.0));
-    cmd.add_option("--smoothing", o->smoothing, "Selective Taubin iterations")->capture_default_str();
+        ->check(kcli::real(0.0, 1.0));
+    cmd.add_option("--smoothing", p.smoothing_iterations, "Selective Taubin iterations (0 = none)")
+        ->capture_default_str()
+        ->check(kcli::count(0, 10000));
     cmd.add_option("--labeling", o->labeling, "graphcut, or sign (the PU field's sign, for comparison)")
         ->capture_default_str()
         ->check(CLI::IsMember({"graphcut", "sign"}));
     cmd.add_flag("--inward-normals", o->inward, "Input normals point into the object (the paper's convention)");
     return [o, &ctx] {
+        ctx.check_output(o->output, kintsugi::OutputKind::mesh);
         kcli::Stopwatch sw;
         kintsugi::ReadInfo info;
+        ctx.doing("reading " + o->input);
         kintsugi::PointCloud cloud = kintsugi::read_point_cloud(o->input, &info);
         ctx.add_timing("read", sw.seconds());
         bool estimated = false;
         if (!kintsugi::has_normals(cloud)) {
-            ctx.notice("kintsugi: " + o->input +
-                       " has no normals; estimating and orienting them (PCA, k = 18, outward)");
-            kintsugi::NormalParams np;
+            kintsugi::NormalParams np;  // the library's defaults
+            ctx.notice(o->input + " has no normals; estimating and orienting them (" +
+                       (np.method == kintsugi::NormalMethod::jet ? "jet" : "PCA") + ", k = " + std::to_string(np.k) +
+                       ", outward)");
             np.control = ctx.control("normals");
+            ctx.doing("estimating the normals of " + kcli::grouped(cloud.points.size()) + " points of " + o->input);
             const auto nr = kintsugi::estimate_normals(cloud, np);
             ctx.end_progress();
-            if (nr.status == kintsugi::Status::cancelled) throw std::runtime_error("cancelled; nothing written");
+            if (nr.status == kintsugi::Status::cancelled) throw kcli::interrupted();
             ctx.add_timings(nr.timings, "normals_");
             estimated = true;
         }
 
-        kintsugi::PUGraphcutParams p;
-        p.max_level = o->max_level;
-        p.epsilon = o->epsilon;
-        p.k = o->k;
-        p.triangulation_weight_scale = o->weight_scale;
-        p.smoothing_iterations = o->smoothing;
+        kintsugi::PUGraphcutParams p = o->params;
         p.seed = ctx.common.seed;
         p.normals = o->inward ? kintsugi::NormalConvention::inward : kintsugi::NormalConvention::outward;
         p.labeling = o->labeling == "sign" ? kintsugi::Labeling::sign : kintsugi::Labeling::graphcut;
         p.control = ctx.control("reconstruct");
+        ctx.doing("reconstructing a surface from the " + kcli::grouped(cloud.points.size()) + " points of " +
+                  o->input + " (--max-level " + std::to_string(p.max_level) + ")");
         kintsugi::PUGraphcutResult r = kintsugi::reconstruct_pu_graphcut(cloud, p);
         ctx.end_progress();
-        if (r.status == kintsugi::Status::cancelled) throw std::runtime_error("cancelled; nothing written");
+        if (r.status == kintsugi::Status::cancelled) throw kcli::interrupted();
         ctx.add_timings(r.timings);
         if (r.far_points > 0)
             ctx.notice(std::to_string(r.far_points) + " of the " + std::to_string(r.points) +
@@ -91,7 +91,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
 
         const kintsugi::TopologyReport rep = kintsugi::topology_report(r.mesh);
         sw = kcli::Stopwatch();
-        kintsugi::write_mesh(o->output, r.mesh);
+        ctx.check_interrupted();
+        ctx.doing("writing " + o->output);
+        kintsugi::write_mesh(o->output, r.mesh, ctx.write_options());
         ctx.add_timing("write", sw.seconds());
 
         auto& j = ctx.json();
@@ -99,11 +101,11 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["input"] = o->input;
         j["output"] = o->output;
         j["parameters"]["method"] = o->method;
-        j["parameters"]["max_level"] = o->max_level;
-        j["parameters"]["epsilon"] = o->epsilon;
-        j["parameters"]["k"] = o->k;
-        j["parameters"]["triangulation_weight_scale"] = o->weight_scale;
-        j["parameters"]["smoothing_iterations"] = o->smoothing;
+        j["parameters"]["max_level"] = p.max_level;
+        j["parameters"]["epsilon"] = p.epsilon;
+        j["parameters"]["k"] = p.k;
+        j["parameters"]["triangulation_weight_scale"] = p.triangulation_weight_scale;
+        j["parameters"]["smoothing_iterations"] = p.smoothing_iterations;
         j["parameters"]["labeling"] = o->labeling;
         j["parameters"]["inward_normals"] = o->inward;
         j["parameters"]["seed"] = ctx.common.seed;

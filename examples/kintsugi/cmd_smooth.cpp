@@ -10,6 +10,7 @@
 #include <kintsugi/io/write.hpp>
 #include <kintsugi/smooth/feature_bilateral.hpp>
 
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -26,40 +27,56 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     auto& p = o->params;
     cmd.add_option("input", o->input, "Triangle mesh (PLY, OFF, OBJ)")->required();
     cmd.add_option("output", o->output, "Smoothed mesh to write (PLY, OFF, OBJ)")->required();
-    cmd.add_option("--a", p.a, "Edge spatial scale (sigma = a|e|/2, a|e|)")->capture_default_str();
-    cmd.add_option("--b", p.b, "Edge range scale (sigma = b|e|)")->capture_default_str();
-    cmd.add_option("--c", p.c, "Face spatial scale (sigma = c|e|/2, c|e|)")->capture_default_str();
-    cmd.add_option("--d", p.d, "Face range scale (sigma = d|e|)")->capture_default_str();
+    // Ranges are those kintsugi::smooth_feature_bilateral accepts: scales positive and
+    // finite, the threshold in [0, 1], at most 10000 passes.
+    const auto positive = kcli::real(0.0, std::numeric_limits<double>::max(), true);
+    cmd.add_option("--a", p.a, "Edge spatial scale (sigma = a|e|/2, a|e|)")->capture_default_str()->check(positive);
+    cmd.add_option("--b", p.b, "Edge range scale (sigma = b|e|)")->capture_default_str()->check(positive);
+    cmd.add_option("--c", p.c, "Face spatial scale (sigma = c|e|/2, c|e|)")->capture_default_str()->check(positive);
+    cmd.add_option("--d", p.d, "Face range scale (sigma = d|e|)")->capture_default_str()->check(positive);
     cmd.add_option("--edge-threshold", p.edge_threshold, "Edge strength threshold (paper: 0.251; scans 0.102)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(kcli::real(0.0, 1.0));
     cmd.add_option("--voting-cube", p.voting_cube, "Voting cube side in mean edge lengths (paper: 3; scans 9)")
-        ->capture_default_str();
-    cmd.add_option("--edge-iterations", p.edge_iterations, "Passes of the sharp-edge filters")->capture_default_str();
-    cmd.add_option("--face-iterations", p.face_iterations, "Passes of the face filters")->capture_default_str();
+        ->capture_default_str()
+        ->check(positive);
+    cmd.add_option("--edge-iterations", p.edge_iterations, "Passes of the sharp-edge filters")
+        ->capture_default_str()
+        ->check(kcli::count(0, 10000));
+    cmd.add_option("--face-iterations", p.face_iterations, "Passes of the face filters")
+        ->capture_default_str()
+        ->check(kcli::count(0, 10000));
     cmd.add_flag("--no-features", o->no_features, "Run the face filters alone, without sharp-edge handling");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
+        if (o->no_features && !o->features.empty())
+            throw kcli::usage_error("--features needs feature detection; drop --no-features");
+        ctx.check_output(o->output, kintsugi::OutputKind::mesh);
+        if (!o->features.empty()) ctx.check_output(o->features, kintsugi::OutputKind::polylines);
         kcli::Stopwatch sw;
+        ctx.doing("reading " + o->input);
         kintsugi::IndexedMesh mesh = kintsugi::read_mesh(o->input);
         mesh.normals.clear();  // positions move; stale normals would be written
         ctx.add_timing("read", sw.seconds());
-        if (o->no_features && !o->features.empty())
-            throw kcli::usage_error("--features needs feature detection; drop --no-features");
 
         kintsugi::FeatureBilateralParams params = o->params;
         params.features = !o->no_features;
         params.control = ctx.control("smooth");
+        ctx.doing("smoothing the " + kcli::grouped(mesh.faces.size()) + " faces of " + o->input);
         const kintsugi::FeatureBilateralResult r = kintsugi::smooth_feature_bilateral(mesh, params);
         ctx.end_progress();
-        if (r.status == kintsugi::Status::cancelled) throw std::runtime_error("cancelled; nothing written");
+        if (r.status == kintsugi::Status::cancelled) throw kcli::interrupted();
         ctx.add_timings(r.timings);
 
         sw = kcli::Stopwatch();
+        // Both files appear together once the command has succeeded (ctx.write_options).
         if (!o->features.empty()) {
             // The features were found on the input: write them at the smoothed positions.
-            kintsugi::write_polylines(o->features, mesh.vertices, r.features.sharp_edges);
+            ctx.doing("writing " + o->features);
+            kintsugi::write_polylines(o->features, mesh.vertices, r.features.sharp_edges, ctx.write_options());
         }
-        kintsugi::write_mesh(o->output, mesh);
+        ctx.doing("writing " + o->output);
+        kintsugi::write_mesh(o->output, mesh, ctx.write_options());
         ctx.add_timing("write", sw.seconds());
 
         auto& j = ctx.json();

@@ -15,27 +15,44 @@
 //   }
 //   KINTSUGI_REGISTER_COMMAND(name, "one-line description", setup)
 //
-// Inside the callback: `ctx.control("stage label")` gives a RunControl with the
-// progress bar and Ctrl-C cancellation; `ctx.json()` is the JSON object printed
-// on stdout when --json is given; `ctx.info(...)` prints a human line unless
-// --quiet or --json; write output files last (kintsugi writers are atomic).
+// Options: bind them to the library's Params (default-constructed, so the help shows
+// the library's defaults) and check each with kcli::real / kcli::count, which reject
+// NaN, Inf, negative counts and out-of-range values while parsing (exit 2, the option
+// named). Checks that involve several options go at the top of the action, before any
+// input is read; so does ctx.check_output(...) for every output path.
+//
+// Inside the callback: `ctx.doing("reading X")` names what runs (for an out-of-memory
+// message); `ctx.control("stage label")` gives a RunControl with the progress bar and
+// Ctrl-C cancellation (on Status::cancelled, throw kcli::interrupted); `ctx.json()` is
+// the JSON object printed on stdout when --json is given; `ctx.info(...)` prints a
+// human line unless --quiet or --json. Write every output with ctx.write_options():
+// the files wait in a batch that main renames into place once the action succeeded,
+// so a failed or interrupted command writes nothing. Long loops of the tool itself
+// call ctx.check_interrupted().
 // Errors: throw (kintsugi::invalid_input, io_error, kcli::usage_error or any
 // std::exception): main prints `kintsugi: error: <message>` and exits 1
-// (2 for usage errors).
+// (2 for usage errors, 128 + signal number when interrupted by SIGINT/SIGTERM/SIGHUP).
 
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/io/write.hpp>
 
 #include <CLI/CLI.hpp>
 
+#include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+#include <stop_token>
 #include <string>
 #include <utility>
 #include <variant>
@@ -47,6 +64,61 @@ namespace kcli {
 struct usage_error : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
+
+/// The run was stopped by SIGINT/SIGTERM/SIGHUP (exit code 128 + the signal).
+struct interrupted : std::runtime_error {
+    interrupted() : std::runtime_error("interrupted") {}
+};
+
+/// Stop token of the whole run: requested on SIGINT, SIGTERM or SIGHUP.
+std::stop_token interrupt_token();
+
+/// `s` with control characters, invalid UTF-8 and invisible characters (byte-order
+/// mark, zero-width and bidirectional marks) escaped as \xNN or \uNNNN, so that
+/// text taken from an input file or the command line prints as what it is.
+std::string printable(const std::string& s);
+
+/// A finite real number in [lo, hi]; with `lo_open`, in (lo, hi]. Rejects NaN and Inf
+/// (which pass CLI::Range: every comparison with NaN is false).
+inline CLI::Validator real(double lo, double hi, bool lo_open = false) {
+    char desc[96];
+    if (hi == std::numeric_limits<double>::max())
+        std::snprintf(desc, sizeof desc, "%s finite number", lo_open && lo == 0 ? "positive" : "finite");
+    else
+        std::snprintf(desc, sizeof desc, "number in %c%.6g, %.6g]", lo_open ? '(' : '[', lo, hi);
+    const std::string d = desc;
+    return CLI::Validator(
+        [lo, hi, lo_open, d](std::string& in) -> std::string {
+            const char* b = in.c_str();
+            char* e = nullptr;
+            errno = 0;
+            const double v = std::strtod(b, &e);
+            const bool whole = e != b && *e == '\0';
+            if (!whole || !std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi))
+                return "must be a " + d + ", got '" + in + "'";
+            return {};
+        },
+        d);
+}
+
+/// A whole number in [lo, hi] written in decimal digits: "-1" is refused (it would
+/// wrap to 2^64 - 1 in an unsigned option), as are "1e3", "0x10" and "nan".
+inline CLI::Validator count(std::uint64_t lo, std::uint64_t hi) {
+    const std::string d = hi == std::numeric_limits<std::uint64_t>::max()
+                              ? "whole number >= " + std::to_string(lo)
+                              : "whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    return CLI::Validator(
+        [lo, hi, d](std::string& in) -> std::string {
+            std::uint64_t v = 0;
+            const char* b = in.data() + (in.size() > 1 && in[0] == '+' ? 1 : 0);
+            const char* e = in.data() + in.size();
+            const auto r = std::from_chars(b, e, v);
+            if (r.ec != std::errc() || r.ptr != e || b == e || v < lo || v > hi)
+                return "must be a " + d + ", got '" + in + "'";
+            return {};
+        },
+        d);
+}
 
 /// A small ordered JSON value (objects keep insertion order).
 class Json {
@@ -61,9 +133,9 @@ public:
     Json(int i) : v_(static_cast<std::int64_t>(i)) {}
     Json(long i) : v_(static_cast<std::int64_t>(i)) {}
     Json(long long i) : v_(static_cast<std::int64_t>(i)) {}
-    Json(unsigned i) : v_(static_cast<std::int64_t>(i)) {}
-    Json(unsigned long i) : v_(static_cast<std::int64_t>(i)) {}
-    Json(unsigned long long i) : v_(static_cast<std::int64_t>(i)) {}
+    Json(unsigned i) : v_(static_cast<std::uint64_t>(i)) {}
+    Json(unsigned long i) : v_(static_cast<std::uint64_t>(i)) {}
+    Json(unsigned long long i) : v_(static_cast<std::uint64_t>(i)) {}
     Json(const char* s) : v_(std::string(s)) {}
     Json(std::string s) : v_(std::move(s)) {}
     Json(Array a) : v_(std::move(a)) {}
@@ -125,6 +197,8 @@ private:
             }
         } else if (const auto* i = std::get_if<std::int64_t>(&v_)) {
             os << *i;
+        } else if (const auto* u = std::get_if<std::uint64_t>(&v_)) {
+            os << *u;
         } else if (const auto* s = std::get_if<std::string>(&v_)) {
             write_string(os, *s);
         } else if (const auto* a = std::get_if<Array>(&v_)) {
@@ -145,7 +219,7 @@ private:
             os << '}';
         }
     }
-    std::variant<std::nullptr_t, bool, double, std::int64_t, std::string, Array, Object> v_;
+    std::variant<std::nullptr_t, bool, double, std::int64_t, std::uint64_t, std::string, Array, Object> v_;
 };
 
 /// Options shared by every subcommand.
@@ -165,8 +239,23 @@ public:
     Json& json() { return json_; }
 
     /// A RunControl that draws a progress bar on stderr (when it is a terminal
-    /// and neither --quiet nor --json) and cancels on Ctrl-C.
+    /// and neither --quiet nor --json) and cancels on Ctrl-C / SIGTERM.
     kintsugi::RunControl control(const std::string& label);
+    /// Throws kcli::interrupted when a stop was requested (Ctrl-C, SIGTERM).
+    void check_interrupted() const;
+    /// Says what runs now (e.g. "smoothing 3,674 faces of bunny.off"), for the
+    /// message when memory runs out.
+    void doing(std::string what) { doing_ = std::move(what); }
+    [[nodiscard]] const std::string& doing() const { return doing_; }
+
+    /// Checks before any input is read that `path` can be written as `kind`
+    /// (extension, directory, permissions, name length); throws io_error otherwise.
+    void check_output(const std::string& path, kintsugi::OutputKind kind) const;
+    /// Write options for every output file: interrupted by Ctrl-C, and batched so that
+    /// the files appear only once the whole command has succeeded (commit_outputs).
+    kintsugi::WriteOptions write_options();
+    /// Renames the outputs written so far into place (main calls it after the action).
+    void commit_outputs();
 
     /// Prints a human-readable line on stdout unless --quiet or --json.
     void info(const std::string& line) const;
@@ -183,6 +272,8 @@ public:
 private:
     Json json_ = Json::object();
     bool progress_drawn_ = false;
+    std::string doing_;
+    kintsugi::OutputBatch outputs_{interrupt_token()};
 };
 
 /// Wall-clock stopwatch in seconds.
@@ -210,14 +301,15 @@ struct CommandEntry {
 std::vector<CommandEntry>& registry();
 bool register_command(const char* name, const char* description, SetupFn setup);
 
-/// Throws kcli::usage_error when `value` is outside [lo, hi].
-template <class T>
-void require_range(const char* option, T value, T lo, T hi) {
-    if (value < lo || value > hi) {
-        std::ostringstream os;
-        os << option << " must be in [" << lo << ", " << hi << "], got " << value;
-        throw usage_error(os.str());
+/// `n` with thousands separators (1,234,567), for messages.
+inline std::string grouped(std::size_t n) {
+    const std::string digits = std::to_string(n);
+    std::string out;
+    for (std::size_t i = 0; i < digits.size(); ++i) {
+        if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+        out += digits[i];
     }
+    return out;
 }
 
 }  // namespace kcli

@@ -88,5 +88,121 @@ awk '{printf "%.17g %.17g %.17g %s %s %s\n", $1*1e200, $2*1e200, $3*1e200, $4, $
 expect 0 "reconstruct at 1e200" -- "$bin" reconstruct "$work/kitten_huge.xyz" "$work/huge.ply" --max-level 6 --json
 json_check "1e200: one closed surface" "j['components']==1 and j['closed'] and j['vertices']>500"
 
+# ---- option values: checked while parsing, before any input is read; exit 2, the option named
+missing=$work/no_such_input.ply
+usage() {  # usage DESCRIPTION OPTION -- command...: exit 2, stderr names OPTION, within 20 s
+  local what=$1 opt=$2; shift 3
+  expect 2 "$what" -- timeout 20 "$@"
+  stderr_has "$what names the option" "$opt"
+}
+usage "normals --k nan" "--k" -- "$bin" normals "$cloud" "$work/o.ply" --k nan
+usage "normals --k -1" "--k" -- "$bin" normals "$cloud" "$work/o.ply" --k -1
+usage "normals jet --k 3" "--k" -- "$bin" normals "$missing" "$work/o.ply" --method jet --k 3
+stderr_has "jet message" "jet"
+usage "reconstruct --epsilon nan" "--epsilon" -- "$bin" reconstruct "$missing" "$work/o.ply" --epsilon nan
+usage "reconstruct --k nan" "--k" -- "$bin" reconstruct "$missing" "$work/o.ply" --k nan
+usage "reconstruct --k inf" "--k" -- "$bin" reconstruct "$missing" "$work/o.ply" --k inf
+usage "reconstruct --smoothing -1" "--smoothing" -- "$bin" reconstruct "$missing" "$work/o.ply" --smoothing -1
+usage "reconstruct --max-level 1.5" "--max-level" -- "$bin" reconstruct "$missing" "$work/o.ply" --max-level 1.5
+usage "perturb --noise nan" "--noise" -- "$bin" perturb "$cloud" "$work/o.ply" --noise nan
+usage "perturb --outliers nan" "--outliers" -- "$bin" perturb "$cloud" "$work/o.ply" --outliers nan
+usage "perturb --seed -1" "--seed" -- "$bin" perturb "$cloud" "$work/o.ply" --seed -1
+usage "smooth --a 0 (before reading)" "--a" -- "$bin" smooth "$missing" "$work/o.ply" --a 0
+usage "smooth --d nan" "--d" -- "$bin" smooth "$missing" "$work/o.ply" --d nan
+usage "smooth --edge-threshold 2" "--edge-threshold" -- "$bin" smooth "$missing" "$work/o.ply" --edge-threshold 2
+usage "smooth --face-iterations -1" "--face-iterations" -- "$bin" smooth "$missing" "$work/o.ply" --face-iterations -1
+usage "smooth --features with --no-features" "--features" -- "$bin" smooth "$missing" "$work/o.ply" --features "$work/f.ply" --no-features
+usage "compare --samples 100000000" "--samples" -- "$bin" compare "$missing" "$missing" --samples 100000000
+usage "compare --threshold nan" "--threshold" -- "$bin" compare "$missing" "$missing" --threshold nan
+if [ ! -e "$work/o.ply" ]; then ok; else bad "a usage error wrote an output"; fi
+expect 0 "perturb, largest seed" -- "$bin" perturb "$cloud" "$work/seed.xyz" --seed 18446744073709551615 --json
+json_check "seed reported unwrapped" "j['parameters']['seed'] == 18446744073709551615"
+# The help shows the library's defaults.
+expect 0 "reconstruct --help" -- "$bin" reconstruct --help
+if grep -Eq -- "--smoothing [^=]*=30( |$)" "$work/out" && grep -Eq -- "--epsilon [^=]*=0.004( |$)" "$work/out"; then ok; else bad "reconstruct help defaults: $(grep -- '--smoothing\|--epsilon' "$work/out")"; fi
+
+# ---- outputs are checked before any input is read (the error names the output)
+expect 1 "unwritable output checked first" -- "$bin" normals "$missing" "/nonexistent-dir/x.ply"
+stderr_has "unwritable output named" "/nonexistent-dir/x.ply"
+expect 1 "mesh output extension checked first" -- "$bin" reconstruct "$missing" "$work/o.xyz"
+stderr_has "extension message" "unsupported extension '.xyz' for a mesh"
+expect 1 "features extension checked first" -- "$bin" smooth "$missing" "$work/o.ply" --features "$work/f.off"
+stderr_has "features extension message" "f.off"
+
+# ---- nothing is written when a command fails
+ln -s /dev/full "$work/full.ply"
+expect 1 "smooth, main output fails on write" -- "$bin" smooth "$mesh" "$work/full.ply" --features "$work/feat.ply" --face-iterations 1
+stderr_has "disk full message" "full.ply"
+if [ ! -e "$work/feat.ply" ]; then ok; else bad "failed smooth wrote its --features file"; fi
+expect 0 "smooth with features" -- "$bin" smooth "$mesh" "$work/sm.off" --features "$work/feat.ply" --face-iterations 1 --json
+if [ -s "$work/sm.off" ] && [ -s "$work/feat.ply" ]; then ok; else bad "smooth outputs missing"; fi
+
+# ---- output paths: symbolic links and devices written through, long names
+mkdir -p "$work/real"
+printf 'old' > "$work/real/target.ply"
+ln -s real/target.ply "$work/link.ply"
+expect 0 "output through a symlink" -- "$bin" normals "$cloud" "$work/link.ply" --k 10
+if [ -L "$work/link.ply" ] && [ "$(head -c 3 "$work/real/target.ply")" = "ply" ]; then ok; else bad "symlink output replaced or target unchanged"; fi
+ln -s /dev/null "$work/null.ply"
+expect 0 "output to /dev/null through a symlink" -- "$bin" perturb "$cloud" "$work/null.ply"
+if [ -L "$work/null.ply" ] && [ -c /dev/null ]; then ok; else bad "/dev/null symlink replaced"; fi
+long=$(printf 'n%.0s' $(seq 246)).ply
+expect 0 "250-character output name" -- "$bin" perturb "$cloud" "$work/$long"
+if [ -s "$work/$long" ]; then ok; else bad "250-character output missing"; fi
+if [ -z "$(find "$work" -name '*.tmp')" ]; then ok; else bad "temporary files left: $(find "$work" -name '*.tmp')"; fi
+
+# ---- messages
+expect 0 "reconstruct without normals" -- "$bin" reconstruct "$mesh" "$work/rec.ply" --max-level 6
+if ! grep -q "kintsugi: kintsugi:" "$work/err"; then ok; else bad "doubled prefix: $(head -c 300 "$work/err")"; fi
+stderr_has "normals notice" "has no normals; estimating"
+esc=$(printf '\033')
+expect 1 "control characters in a file name are escaped" -- "$bin" info "$work/bad${esc}[31mname.ply"
+if ! grep -q "$esc" "$work/err"; then ok; else bad "raw escape byte echoed"; fi
+stderr_has "escaped name" 'bad\\x1B\[31mname.ply'
+printf 'OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$work/tri.off"
+expect 1 "out of memory is named" -- bash -c "ulimit -v 600000; exec \"$bin\" compare \"$mesh\" \"$mesh\" --samples 10000000 --threads 1"
+stderr_has "out of memory message" "out of memory while comparing"
+if ! grep -q "bad_alloc" "$work/err"; then ok; else bad "bare bad_alloc"; fi
+
+# ---- Ctrl-C and SIGTERM: exit 128 + signal soon, no output, no temporary file
+# no_leftovers NAME: neither NAME nor a temporary file of it in $work
+no_leftovers() {
+  if [ ! -e "$work/$1" ] && [ -z "$(find "$work" -maxdepth 1 -name ".$1.*.tmp")" ]; then ok
+  else bad "interrupted run left $(ls -a "$work" | grep -F "$1" | tr '\n' ' ')"; fi
+}
+# interrupt SIGNAL WHEN EXPECTED_EXIT DESCRIPTION -- command...
+# WHEN: seconds to wait, or tmp:NAME to wait until NAME's temporary file exists (the write has begun)
+interrupt() {
+  local sig=$1 when=$2 code=$3 what=$4; shift 5
+  "$@" >"$work/out" 2>"$work/err" &
+  local pid=$! t0=$SECONDS
+  case $when in
+    tmp:*) for _ in $(seq 400); do
+             [ -n "$(find "$work" -maxdepth 1 -name ".${when#tmp:}.*.tmp")" ] && break; sleep 0.05
+           done ;;
+    *) sleep "$when" ;;
+  esac
+  kill -s "$sig" $pid
+  wait $pid; local rc=$?
+  if [ $rc -eq "$code" ]; then ok; else bad "$what: exit $rc, expected $code; stderr: $(head -c 300 "$work/err")"; fi
+  if [ $((SECONDS - t0)) -le 15 ]; then ok; else bad "$what: took $((SECONDS - t0)) s to stop"; fi
+}
+"$bin" perturb "$cloud" "$work/big1.ply" --outliers 10 --seed 1 -q &&
+  "$bin" perturb "$work/big1.ply" "$work/big.ply" --outliers 10 --seed 2 -q   # 630,410 points
+interrupt INT 1 130 "Ctrl-C during reconstruct" -- "$bin" reconstruct "$work/big.ply" "$work/int_rec.ply" --max-level 9
+stderr_has "interrupted message" "interrupted by SIGINT"
+no_leftovers int_rec.ply
+interrupt TERM 1 143 "SIGTERM during reconstruct" -- "$bin" reconstruct "$work/big.ply" "$work/term_rec.ply" --max-level 9
+no_leftovers term_rec.ply
+# perturb: 630K points -> 4.4M (a 210 MB PLY, ~2.5 s): the signal lands in its loops, or in the write.
+interrupt INT 0.4 130 "Ctrl-C during perturb" -- "$bin" perturb "$work/big.ply" "$work/int_pert.ply" --outliers 6 --noise 0.01
+no_leftovers int_pert.ply
+interrupt TERM tmp:term_pert.ply 143 "SIGTERM during perturb's write" -- "$bin" perturb "$work/big.ply" "$work/term_pert.ply" --outliers 6 --noise 0.01
+stderr_has "SIGTERM message" "interrupted by SIGTERM"
+no_leftovers term_pert.ply
+interrupt INT tmp:int_write.ply 130 "Ctrl-C during perturb's write" -- "$bin" perturb "$work/big.ply" "$work/int_write.ply" --outliers 6
+no_leftovers int_write.ply
+rm -f "$work/big1.ply" "$work/big.ply"
+
 echo "cli: $pass passed, $fail failed"
 [ $fail -eq 0 ]

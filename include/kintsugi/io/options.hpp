@@ -12,6 +12,8 @@
 
 namespace kintsugi {
 
+class OutputBatch;
+
 /// Options of read_mesh().
 struct ReadOptions {
     /// Polygons with more than 3 vertices are split into fan triangles (v0, vi, vi+1) and
@@ -46,6 +48,10 @@ struct WriteOptions {
     bool binary = true;
     /// PLY binary only: big-endian instead of little-endian.
     bool big_endian = false;
+    /// When set, the finished file waits in the batch and appears only at
+    /// batch->commit(), together with the batch's other files; a stop request on the
+    /// batch's token interrupts the write (see OutputBatch).
+    OutputBatch* batch = nullptr;
 };
 
 }  // namespace kintsugi

@@ -12,6 +12,10 @@
 /// leaves no partial output and no temporary file behind. Text numbers are written in
 /// the shortest form that reads back to the same double (std::to_chars), so ascii
 /// round trips are exact too; binary PLY stores doubles.
+///
+/// Several files that must appear together (a mesh and its feature lines) go through
+/// an OutputBatch; check_writable() tells before a long computation whether a path can
+/// be written; remove_temporary_outputs() is for a program's SIGINT/SIGTERM handling.
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/concepts.hpp>
@@ -27,11 +31,75 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <stop_token>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace kintsugi {
+
+/// @brief Output files that appear together, and writes that can be interrupted. A
+/// write given `WriteOptions::batch = &batch` leaves its finished file (a temporary
+/// file in the target's directory) in the batch; commit() renames them all into
+/// place, in the order written. Destroying the batch without commit() removes them,
+/// so a failure anywhere leaves none of the targets changed. A stop request on the
+/// batch's token makes a write under way throw io_error ("interrupted") at its next
+/// 1 MB block. A character device or FIFO target is written at once, not batched.
+class OutputBatch {
+public:
+    /// @param stop interrupts the batch's writes (empty: never).
+    explicit OutputBatch(std::stop_token stop = {}) : stop_(std::move(stop)) {}
+    OutputBatch(const OutputBatch&) = delete;
+    OutputBatch& operator=(const OutputBatch&) = delete;
+    ~OutputBatch() { discard(); }
+
+    /// Renames every file into place. @throws io_error naming the file a rename failed
+    /// for; the files not yet renamed are removed.
+    void commit() {
+        for (std::size_t i = 0; i < pending_.size(); ++i) {
+            std::error_code ec;
+            detail::io::temporary_files().rename(pending_[i].temporary, pending_[i].target, ec);
+            if (ec) {
+                const std::string name = pending_[i].name;
+                pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(i));
+                discard();
+                throw io_error(name, "cannot rename the temporary file into place: " + ec.message());
+            }
+        }
+        pending_.clear();
+    }
+    /// Removes the files written so far; no target changes.
+    void discard() noexcept {
+        for (const auto& p : pending_) {
+            std::error_code ec;
+            std::filesystem::remove(p.temporary, ec);
+            detail::io::temporary_files().forget(p.temporary);
+        }
+        pending_.clear();
+    }
+    /// Number of files waiting for commit().
+    [[nodiscard]] std::size_t size() const { return pending_.size(); }
+    /// The token that interrupts the batch's writes.
+    [[nodiscard]] const std::stop_token& stop_token() const { return stop_; }
+
+    /// Used by the writers: finishes `out` and keeps it for commit().
+    void adopt(detail::io::AtomicOutputFile& out) {
+        detail::io::PendingOutput p = out.finish();
+        if (!p.temporary.empty()) pending_.push_back(std::move(p));
+    }
+
+private:
+    std::stop_token stop_;
+    std::vector<detail::io::PendingOutput> pending_;
+};
+
+/// @brief Removes the temporary files of every write under way in this process; their
+/// targets stay as they were. For a program that handles SIGINT/SIGTERM: call it from
+/// an ordinary thread (one waiting in sigwait, say) before exiting, not from a signal
+/// handler (it takes a lock). Writes still running afterwards fail with io_error.
+/// @return the number of files removed.
+inline std::size_t remove_temporary_outputs() { return detail::io::temporary_files().remove_all(); }
 
 namespace detail::io {
 
@@ -79,13 +147,48 @@ inline void check_cloud_for_write(const PointCloud& c, const char* function) {
     }
 }
 
+/// The stop token of the options' batch (none without a batch).
+inline std::stop_token write_stop(const WriteOptions& options) {
+    return options.batch ? options.batch->stop_token() : std::stop_token{};
+}
+
+/// Commits `out` now, or leaves it in the options' batch.
+inline void finish_output(AtomicOutputFile& out, const WriteOptions& options) {
+    if (options.batch)
+        options.batch->adopt(out);
+    else
+        out.commit();
+}
+
+/// Throws io_error unless `path` has an extension the writers of `kind` support.
+inline void check_extension(const std::filesystem::path& path, const std::string& kind) {
+    const std::string ext = lower_extension(path);
+    bool ok = false;
+    const char* list = "";
+    const char* what = "";
+    if (kind == "mesh") {
+        ok = ext == ".ply" || ext == ".off" || ext == ".obj";
+        list = "meshes as .ply, .off or .obj";
+        what = "a mesh";
+    } else if (kind == "point cloud") {
+        ok = ext == ".ply" || ext == ".off" || ext == ".obj" || ext == ".xyz" || ext == ".pwn";
+        list = "point clouds as .ply, .xyz, .pwn, .off or .obj";
+        what = "a point cloud";
+    } else {
+        ok = ext == ".ply" || ext == ".obj";
+        list = "polylines as .ply or .obj";
+        what = "polylines";
+    }
+    if (!ok)
+        throw io_error(path.string(), "unsupported extension '" + path.extension().string() + "' for " + what +
+                                          "; kintsugi writes " + list);
+}
+
 inline void write_indexed_mesh(const std::filesystem::path& path, const IndexedMesh& m, const WriteOptions& options) {
     const std::string ext = lower_extension(path);
-    if (ext != ".ply" && ext != ".off" && ext != ".obj")
-        throw io_error(path.string(), "unsupported extension '" + path.extension().string() +
-                                          "' for a mesh; kintsugi writes meshes as .ply, .off or .obj");
+    check_extension(path, "mesh");
     check_mesh_for_write(m, "kintsugi::write_mesh");
-    AtomicOutputFile out(path);
+    AtomicOutputFile out(path, write_stop(options));
     if (ext == ".ply") {
         PlyWriteData d;
         d.vertices = &m.vertices;
@@ -97,19 +200,17 @@ inline void write_indexed_mesh(const std::filesystem::path& path, const IndexedM
     } else {
         write_obj(out, m.vertices, &m.normals, &m.faces);
     }
-    out.commit();
+    finish_output(out, options);
 }
 
 inline void write_cloud(const std::filesystem::path& path, const PointCloud& c, const WriteOptions& options) {
     const std::string ext = lower_extension(path);
-    if (ext != ".ply" && ext != ".off" && ext != ".obj" && ext != ".xyz" && ext != ".pwn")
-        throw io_error(path.string(), "unsupported extension '" + path.extension().string() +
-                                          "' for a point cloud; kintsugi writes .ply, .xyz, .pwn, .off or .obj");
+    check_extension(path, "point cloud");
     check_cloud_for_write(c, "kintsugi::write_point_cloud");
     if (ext == ".pwn" && c.normals.empty() && !c.points.empty())
         throw invalid_input("kintsugi::write_point_cloud: a .pwn file needs normals and the point set has none; "
                             "estimate them first (kintsugi::estimate_normals) or write .xyz");
-    AtomicOutputFile out(path);
+    AtomicOutputFile out(path, write_stop(options));
     if (ext == ".ply") {
         PlyWriteData d;
         d.vertices = &c.points;
@@ -123,7 +224,7 @@ inline void write_cloud(const std::filesystem::path& path, const PointCloud& c, 
     } else {
         write_xyz(out, c.points, &c.normals);
     }
-    out.commit();
+    finish_output(out, options);
 }
 
 }  // namespace detail::io
@@ -179,9 +280,7 @@ void write_point_cloud(const std::filesystem::path& path, const P& points, const
 inline void write_polylines(const std::filesystem::path& path, const std::vector<Vec3>& points,
                             const std::vector<std::array<Index, 2>>& edges, const WriteOptions& options = {}) {
     const std::string ext = detail::io::lower_extension(path);
-    if (ext != ".ply" && ext != ".obj")
-        throw io_error(path.string(), "unsupported extension '" + path.extension().string() +
-                                          "' for polylines; kintsugi writes them as .ply or .obj");
+    detail::io::check_extension(path, "polylines");
     detail::io::check_finite_for_write(points, "kintsugi::write_polylines", "point");
     for (std::size_t e = 0; e < edges.size(); ++e)
         for (const Index v : edges[e])
@@ -189,7 +288,7 @@ inline void write_polylines(const std::filesystem::path& path, const std::vector
                 throw invalid_input("kintsugi::write_polylines: edge " + std::to_string(e) + " uses point " +
                                     std::to_string(v) + ", out of range (there are " +
                                     std::to_string(points.size()) + " points)");
-    detail::io::AtomicOutputFile out(path);
+    detail::io::AtomicOutputFile out(path, detail::io::write_stop(options));
     if (ext == ".ply") {
         detail::io::PlyWriteData d;
         d.vertices = &points;
@@ -198,7 +297,26 @@ inline void write_polylines(const std::filesystem::path& path, const std::vector
     } else {
         detail::io::write_obj(out, points, nullptr, nullptr, &edges);
     }
-    out.commit();
+    detail::io::finish_output(out, options);
+}
+
+/// What an output file will hold, for check_writable().
+enum class OutputKind { mesh, point_cloud, polylines };
+
+/// @brief Checks, before a long computation, that `path` can be written as `kind`: a
+/// supported extension, an existing writable directory (or a character device / FIFO),
+/// a file name short enough. Creates and removes a temporary file in the directory;
+/// the target itself is not touched.
+/// @throws io_error naming `path` and the problem (the message the write would give).
+inline void check_writable(const std::filesystem::path& path, OutputKind kind) {
+    detail::io::check_extension(path, kind == OutputKind::mesh          ? "mesh"
+                                      : kind == OutputKind::point_cloud ? "point cloud"
+                                                                        : "polylines");
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    // A device or FIFO is opened only by the write itself (opening a FIFO blocks).
+    if (std::filesystem::is_character_file(st) || std::filesystem::is_fifo(st)) return;
+    const detail::io::AtomicOutputFile probe(path);  // its temporary file is removed unwritten
 }
 
 }  // namespace kintsugi
