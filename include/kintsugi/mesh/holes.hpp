@@ -23,6 +23,8 @@
 #include <kintsugi/mesh/halfedge_mesh.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
