@@ -370,3 +370,21 @@ TEST_CASE("KdTree leaf size changes the tree, never the answers") {
     CHECK_THROWS_WITH_AS(ks::KdTree(pts, ks::KdTreeParams{.leaf_size = 0}), doctest::Contains("leaf_size"),
                          ks::invalid_input);
 }
+
+TEST_CASE("KdTree::adopt takes the positions over and answers as the copying constructor") {
+    auto pts = random_points(800, 21);
+    const ks::KdTree copied(pts);
+    const ks::Vec3* data = pts.data();
+    const auto adopted = ks::KdTree::adopt(std::move(pts));
+    CHECK(adopted.points().data() == data);  // no copy
+    const auto coarse = ks::KdTree::adopt(copied.points(), {.leaf_size = 40});
+    CHECK(coarse.leaf_size() == 40);
+    for (const auto& q : random_points(30, 22)) {
+        check_same(adopted.knn(q, 7), copied.knn(q, 7));
+        check_same(coarse.radius_search_squared(q, 0.04), copied.radius_search_squared(q, 0.04));
+    }
+    CHECK_THROWS_WITH_AS((void)ks::KdTree::adopt(copied.points(), {.leaf_size = 0}), doctest::Contains("leaf_size"),
+                         ks::invalid_input);
+    std::vector<ks::Vec3> bad = {ks::Vec3::Zero(), ks::Vec3(0, 0, std::numeric_limits<double>::quiet_NaN())};
+    CHECK_THROWS_WITH_AS((void)ks::KdTree::adopt(bad), doctest::Contains("point 1"), ks::invalid_input);
+}

@@ -220,3 +220,140 @@ TEST_CASE("UniformGrid rejects NaN and infinite points, a bad cell side and NaN 
     CHECK_THROWS_AS(grid.radius_search_squared(bad, 0.1, out), ks::invalid_input);
     CHECK_THROWS_AS(grid.radius_search_squared(ks::Vec3::Zero(), std::nan(""), out), ks::invalid_input);
 }
+
+namespace {
+// Every query kind against brute force over `pts` (indices = positions).
+void check_all_queries(const ks::UniformGrid& grid, const std::vector<ks::Vec3>& pts, unsigned seed) {
+    REQUIRE(grid.size() == pts.size());
+    std::vector<ks::Neighbor> nn;
+    std::vector<std::uint32_t> idx;
+    std::vector<double> d2;
+    for (const auto& q : cloud(15, seed, 1.2))
+        for (double h : {0.04, 0.1, 0.5}) {
+            CHECK(by_index(cube(grid, q, h)) == brute(pts, q, h, false));
+            CHECK(by_index(ball(grid, q, h)) == brute(pts, q, h, true));
+            grid.radius_search_squared(q, h * h, nn);
+            Hits got;
+            for (const auto& n : nn) got.emplace_back(n.index, n.squared_distance);
+            CHECK(by_index(got) == brute(pts, q, h, true));
+            grid.gather(q, h, idx, d2);
+            std::vector<std::uint32_t> want;
+            for (const auto& [i, d] : brute(pts, q, h, false))
+                if (std::abs((pts[i] - q).cwiseAbs().maxCoeff() - h) > 1e-6) want.push_back(static_cast<std::uint32_t>(i));
+            std::vector<std::uint32_t> fast;
+            for (std::uint32_t i : idx)
+                if (std::abs((pts[i] - q).cwiseAbs().maxCoeff() - h) > 1e-6) fast.push_back(i);
+            std::sort(fast.begin(), fast.end());
+            CHECK(fast == want);
+        }
+}
+}  // namespace
+
+TEST_CASE("UniformGrid grows: appended points are found at once, before and after each merge") {
+    const auto pts = cloud(5000, 20);
+    ks::UniformGrid grid(0.1);
+    CHECK(grid.size() == 0);
+    std::vector<ks::Vec3> so_far;
+    std::size_t checked = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        CHECK(grid.append(pts[i]) == i);
+        so_far.push_back(pts[i]);
+        // Around the first merges (1024, 2048 points) and at the end.
+        if (i + 1 == 7 || i + 1 == 1023 || i + 1 == 1024 || i + 1 == 1025 || i + 1 == 2049 || i + 1 == 5000) {
+            check_all_queries(grid, so_far, static_cast<unsigned>(i));
+            ++checked;
+        }
+    }
+    CHECK(checked == 6);
+    CHECK(grid.cell_size() == 0.1);
+}
+
+TEST_CASE("UniformGrid grows beyond its box and keeps the built points' indices and the keep filter") {
+    auto pts = cloud(1500, 21);
+    ks::UniformGrid grid(pts, 0.1, [](std::size_t i) { return i % 5 != 0; });
+    std::vector<ks::Vec3> kept;
+    std::vector<ks::Index> kept_index;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        if (i % 5 != 0) {
+            kept.push_back(pts[i]);
+            kept_index.push_back(i);
+        }
+    // Outside the first box, near and very far (beyond the appended points' key range).
+    const std::vector<ks::Vec3> more = {ks::Vec3(3, 3, 3), ks::Vec3(-2.5, 0, 1), ks::Vec3(3.05, 3, 3), ks::Vec3(1e6, 0, 0),
+                                        ks::Vec3(1e6, 0.05, 0)};
+    for (const auto& p : more) {
+        const ks::Index id = grid.append(p);
+        CHECK(id == pts.size());
+        pts.push_back(p);
+        kept.push_back(p);
+        kept_index.push_back(id);
+    }
+    CHECK(grid.size() == kept.size());
+    for (const auto& q : {more[0], more[1], more[3], ks::Vec3(0.2, 0.1, 0.0)}) {
+        Hits want;
+        for (const auto& [k, d] : brute(kept, q, 0.3, true)) want.emplace_back(kept_index[k], d);
+        CHECK(by_index(ball(grid, q, 0.3)) == by_index(want));
+    }
+    CHECK(by_index(ball(grid, ks::Vec3(1e6, 0, 0), 0.1)) == Hits{{1503, 0.0}, {1504, 0.05 * 0.05}});
+}
+
+TEST_CASE("UniformGrid append rejects NaN points and a grid without a cell side") {
+    ks::UniformGrid grid(0.5);
+    CHECK_THROWS_WITH_AS(grid.append(ks::Vec3(0, std::numeric_limits<double>::quiet_NaN(), 0)), doctest::Contains("NaN"),
+                         ks::invalid_input);
+    CHECK(grid.size() == 0);
+    ks::UniformGrid none;
+    CHECK_THROWS_WITH_AS(none.append(ks::Vec3::Zero()), doctest::Contains("cell side"), ks::invalid_input);
+    CHECK_THROWS_AS(ks::UniformGrid(0.0), ks::invalid_input);
+    CHECK_THROWS_WITH_AS((void)grid.nearest(ks::Vec3::Zero()), doctest::Contains("empty"), ks::invalid_input);
+    std::vector<ks::Neighbor> out;
+    grid.knn(ks::Vec3::Zero(), 3, out);
+    CHECK(out.empty());
+}
+
+namespace {
+template <ks::SpatialIndex S>
+std::vector<ks::Neighbor> knn_of(const S& index, const ks::Vec3& q, std::size_t k) {
+    std::vector<ks::Neighbor> out;
+    index.knn(q, k, out);
+    return out;
+}
+struct KdMaker {
+    static ks::KdTree make(const std::vector<ks::Vec3>& p) { return ks::KdTree(p); }
+};
+struct GridMaker {
+    static ks::UniformGrid make(const std::vector<ks::Vec3>& p) { return ks::UniformGrid(p, 0.05); }
+};
+struct GrownGridMaker {  // half built, half appended
+    static ks::UniformGrid make(const std::vector<ks::Vec3>& p) {
+        ks::UniformGrid g(std::vector<ks::Vec3>(p.begin(), p.begin() + static_cast<std::ptrdiff_t>(p.size() / 2)), 0.05);
+        for (std::size_t i = p.size() / 2; i < p.size(); ++i) g.append(p[i]);
+        return g;
+    }
+};
+}  // namespace
+
+TEST_CASE_TEMPLATE("every SpatialIndex gives the brute-force k nearest, ties by index", M, KdMaker, GridMaker,
+                   GrownGridMaker) {
+    // Points on an integer lattice scaled by 1/16: many exactly equal distances.
+    std::mt19937 rng(30);
+    std::uniform_int_distribution<int> u(-16, 16);
+    std::vector<ks::Vec3> pts(3000);
+    for (auto& p : pts) p = ks::Vec3(u(rng), u(rng), u(rng)) / 16.0;
+    const auto index = M::make(pts);
+    static_assert(ks::SpatialIndex<std::remove_cvref_t<decltype(index)>>);
+    for (const auto& q : cloud(40, 31, 1.5))
+        for (std::size_t k : {1, 5, 30}) {
+            std::vector<std::pair<double, ks::Index>> all;
+            for (std::size_t i = 0; i < pts.size(); ++i) all.emplace_back((pts[i] - q).squaredNorm(), i);
+            std::sort(all.begin(), all.end());
+            const auto got = knn_of(index, q, k);
+            REQUIRE(got.size() == k);
+            for (std::size_t j = 0; j < k; ++j) {
+                CHECK(got[j].index == all[j].second);
+                CHECK(got[j].squared_distance == doctest::Approx(all[j].first).epsilon(1e-12));
+            }
+            CHECK(index.nearest(q).index == all[0].second);
+        }
+    CHECK(knn_of(index, ks::Vec3::Zero(), 5000).size() == pts.size());
+}

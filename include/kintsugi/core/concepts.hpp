@@ -9,6 +9,7 @@
 #include <kintsugi/core/traits.hpp>
 #include <kintsugi/core/types.hpp>
 
+#include <algorithm>
 #include <concepts>
 #include <cstddef>
 #include <optional>
@@ -230,8 +231,21 @@ struct Neighbor {
     Scalar squared_distance = 0;
 };
 
+namespace detail {
+/// The order every SpatialIndex returns: increasing distance, ties by index.
+inline void sort_neighbors(std::vector<Neighbor>& out) {
+    std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
+        return a.squared_distance < b.squared_distance ||
+               (a.squared_distance == b.squared_distance && a.index < b.index);
+    });
+}
+}  // namespace detail
+
 /// A spatial index over a point set: k-nearest and radius queries returning
-/// Neighbor{index, squared_distance}, sorted by increasing distance.
+/// Neighbor{index, squared_distance}, sorted by increasing distance, ties by index (so
+/// that every model gives the same answer): knn(q, k, out) the min(k, size()) nearest,
+/// radius_search_squared(q, r², out) every point at squared distance <= r², nearest(q)
+/// (invalid_input on an empty index or a NaN query). Models: KdTree, UniformGrid.
 template <class S>
 concept SpatialIndex = requires(const S& s, const Vec3& q, std::size_t k, Scalar r,
                                 std::vector<Neighbor>& out) {

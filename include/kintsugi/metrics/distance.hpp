@@ -28,6 +28,7 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
+#include <kintsugi/spatial/morton.hpp>
 
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
@@ -241,38 +242,6 @@ inline SurfaceSamples sample_surface(const IndexedMesh& m, std::size_t n, std::u
     return s;
 }
 
-/// Morton (Z-order) rank of each point in its bounding box, 21 bits per axis; the
-/// order is (code, index), so it is deterministic.
-inline std::vector<std::size_t> morton_order(const std::vector<Vec3>& q) {
-    BoundingBox box;
-    for (const Vec3& p : q) box.extend(p);
-    const Vec3 lo = box.min, ext = box.extent();
-    const double scale = (1u << 21) - 1;
-    auto spread = [](std::uint64_t x) {  // 21 bits -> every third bit
-        x &= 0x1fffff;
-        x = (x | x << 32) & 0x1f00000000ffffULL;
-        x = (x | x << 16) & 0x1f0000ff0000ffULL;
-        x = (x | x << 8) & 0x100f00f00f00f00fULL;
-        x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
-        x = (x | x << 2) & 0x1249249249249249ULL;
-        return x;
-    };
-    std::vector<std::uint64_t> code(q.size());
-    parallel_for(0, q.size(), [&](std::size_t i) {
-        std::uint64_t c = 0;
-        for (int k = 0; k < 3; ++k) {
-            const double t = ext[k] > 0 ? (q[i][k] - lo[k]) / ext[k] : 0.0;
-            c |= spread(static_cast<std::uint64_t>(std::clamp(t, 0.0, 1.0) * scale)) << k;
-        }
-        code[i] = c;
-    });
-    std::vector<std::size_t> order(q.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(),
-              [&](std::size_t a, std::size_t b) { return code[a] < code[b] || (code[a] == code[b] && a < b); });
-    return order;
-}
-
 /// Closest points of all queries. As CGAL's own Hausdorff code does, the queries are
 /// put in space-filling-curve order and each starts from the previous answer (see
 /// TriangleDistance::closest_run), in fixed runs of 256 run in parallel; progress is
@@ -281,7 +250,7 @@ inline std::vector<std::size_t> morton_order(const std::vector<Vec3>& q) {
 inline std::vector<TriangleDistance::Hit> closest_points(const TriangleDistance& tree, const std::vector<Vec3>& q,
                                                          Progress* progress) {
     constexpr std::size_t run = 256, block = 64 * run;
-    const std::vector<std::size_t> order = morton_order(q);
+    const std::vector<Index> order = morton_order(q);  // CGAL's hint works best on close queries
     std::vector<Vec3> sorted(q.size());
     for (std::size_t i = 0; i < q.size(); ++i) sorted[i] = q[order[i]];
     std::vector<TriangleDistance::Hit> hits(q.size());
@@ -454,7 +423,7 @@ inline DistanceReport compare_points_impl(const std::vector<Vec3>& pts, const st
 
         progress.stage("build", 0.05, 0.2);
         const TriangleDistance tb(b);
-        const KdTree kd(pts, 0);
+        const KdTree kd(pts);
 
         progress.stage("a_to_b", 0.2, 0.6);
         const auto hits = closest_points(tb, pts, &progress);

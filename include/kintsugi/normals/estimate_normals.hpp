@@ -165,7 +165,7 @@ NormalResult estimate_normals(P& points, const NormalParams& params = {}) {
     detail::Progress progress(params.control);
     try {
         progress.stage("kd-tree", 0.0, 0.1);
-        const KdTree tree(std::move(pts));
+        const auto tree = KdTree::adopt(std::move(pts));
         progress.stage("neighbours", 0.1, 0.4);
         const auto table = detail::normals::knn_table(tree, std::min(params.k + 1, n), progress);
         progress.stage("fit", 0.4, params.orient ? 0.8 : 1.0);
@@ -220,7 +220,7 @@ NormalResult orient_normals(P& points, const NormalParams& params = {}) {
     detail::Progress progress(params.control);
     try {
         progress.stage("kd-tree", 0.0, 0.2);
-        const KdTree tree(std::move(pts));
+        const auto tree = KdTree::adopt(std::move(pts));
         progress.stage("neighbours", 0.2, 0.6);
         const auto table = detail::normals::knn_table(tree, std::min(params.k + 1, n), progress);
         progress.stage("orient", 0.6, 1.0);

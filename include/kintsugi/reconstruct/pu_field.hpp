@@ -363,7 +363,7 @@ inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3
             pts.swap(p2);
             nrm.swap(n2);
         }
-        const KdTree tree(pts, 0);
+        const KdTree tree(pts);
         res.octree_cells = data->octree.size();
         res.max_level_cells = data->octree.cells_per_level().back();
 

@@ -377,7 +377,7 @@ inline PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vector<Vec3
             for (std::size_t i = 0; i < ns; ++i) trusted.push_back(i);
         std::vector<Vec3> origins(trusted.size());
         for (std::size_t j = 0; j < trusted.size(); ++j) origins[j] = sup[trusted[j]].origin;
-        const KdTree origin_tree(std::move(origins), 0);
+        const auto origin_tree = KdTree::adopt(std::move(origins));
         std::vector<Scalar> f(nv), f_pu(nv);
         parallel_for(0, nv, [&](std::size_t v) {
             bool trust = false;

@@ -150,6 +150,7 @@
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
+#include <kintsugi/spatial/morton.hpp>
 
 #include <algorithm>
 #include <array>
@@ -339,48 +340,21 @@ inline SpatialOrder spatial_order(const IndexedMesh& m) {
     out.frame = scale_frame(m.vertices);
     std::vector<Vec3> local = m.vertices;
     out.frame.to_local(local);
-    Vec3 lo = Vec3::Constant(std::numeric_limits<Scalar>::max()), hi = -lo;
-    for (const Vec3& p : local) {
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-    }
-    const Vec3 ext = (hi - lo).cwiseMax(Vec3::Constant(std::numeric_limits<Scalar>::min()));
-    auto morton = [&](const Vec3& p) {
-        const Vec3 a = (p - lo).cwiseQuotient(ext) * Scalar((1 << 21) - 1);
-        std::uint64_t key = 0;
-        for (int k = 0; k < 3; ++k) {
-            std::uint64_t x = static_cast<std::uint64_t>(std::clamp(a[k], Scalar(0), Scalar((1 << 21) - 1)));
-            x = (x | (x << 32)) & 0x1f00000000ffffull;  // spread 21 bits to every third bit
-            x = (x | (x << 16)) & 0x1f0000ff0000ffull;
-            x = (x | (x << 8)) & 0x100f00f00f00f00full;
-            x = (x | (x << 4)) & 0x10c30c30c30c30c3ull;
-            x = (x | (x << 2)) & 0x1249249249249249ull;
-            key |= x << k;
-        }
-        return key;
-    };
-    std::vector<std::pair<std::uint64_t, Index>> vk(nv), fk(nf);
-    parallel_for(0, nv, [&](std::size_t v) { vk[v] = {morton(local[v]), v}; }, 4096);
-    parallel_for(0, nf, [&](std::size_t f) {
+    const MortonBox box(local);
+    const std::vector<Index> vk = morton_order(nv, box, [&](Index v) { return local[v]; });
+    const std::vector<Index> fk = morton_order(nf, box, [&](Index f) {
         const Face& t = m.faces[f];
-        fk[f] = {morton((local[t[0]] + local[t[1]] + local[t[2]]) / 3), f};
-    }, 4096);
-#ifdef KINTSUGI_PARALLEL_TBB
-    tbb::parallel_sort(vk.begin(), vk.end());  // unique (key, index) pairs: one result
-    tbb::parallel_sort(fk.begin(), fk.end());
-#else
-    std::sort(vk.begin(), vk.end());
-    std::sort(fk.begin(), fk.end());
-#endif
+        return Vec3((local[t[0]] + local[t[1]] + local[t[2]]) / 3);
+    });
     out.order.resize(nv);
     out.mesh.vertices.resize(nv);
     out.mesh.faces.resize(nf);
     for (std::size_t k = 0; k < nv; ++k) {
-        out.order[vk[k].second] = k;
-        out.mesh.vertices[k] = local[vk[k].second];
+        out.order[vk[k]] = k;
+        out.mesh.vertices[k] = local[vk[k]];
     }
     for (std::size_t k = 0; k < nf; ++k) {
-        const Face& t = m.faces[fk[k].second];
+        const Face& t = m.faces[fk[k]];
         out.mesh.faces[k] = {out.order[t[0]], out.order[t[1]], out.order[t[2]]};
     }
     return out;

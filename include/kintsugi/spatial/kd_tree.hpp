@@ -13,6 +13,7 @@
 /// tree.radius_search_squared(q, r * r, nn);      // all within distance r, sorted
 /// tree.radius_search_squared(q, r * r, nn, false);  // same set, tree order (faster)
 /// kintsugi::KdTree coarse(points, {.leaf_size = 32});  // other bucket size
+/// auto owned = kintsugi::KdTree::adopt(std::move(positions));  // a vector<Vec3>, not copied
 /// @endcode
 /// Queries are const and thread-safe. Ties are broken by index, so results are
 /// deterministic; the unsorted radius search returns the same set in an order that
@@ -62,13 +63,6 @@ struct KdRadiusCollector {
     }
     [[nodiscard]] Scalar worstDist() const { return bound; }
 };
-
-inline void sort_neighbors(std::vector<Neighbor>& out) {
-    std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
-        return a.squared_distance < b.squared_distance ||
-               (a.squared_distance == b.squared_distance && a.index < b.index);
-    });
-}
 }  // namespace detail
 
 /// Options of the KdTree (aggregate; field order is API, append only).
@@ -101,12 +95,14 @@ public:
         init(kintsugi::gather_points(points), params);
     }
 
-    /// Builds the tree over positions moved in.
-    explicit KdTree(std::vector<Vec3> points, int /*tag*/ = 0) { init(std::move(points), KdTreeParams{}); }
-
-    /// Builds the tree over positions moved in, with the given options.
+    /// Builds the tree over positions it takes over (no copy when moved in):
+    /// `auto tree = KdTree::adopt(std::move(positions));`.
     /// @throws invalid_input if a coordinate is NaN or infinite, or leaf_size is 0.
-    KdTree(std::vector<Vec3> points, const KdTreeParams& params) { init(std::move(points), params); }
+    [[nodiscard]] static KdTree adopt(std::vector<Vec3> points, const KdTreeParams& params = {}) {
+        KdTree tree;
+        tree.init(std::move(points), params);
+        return tree;
+    }
 
     KdTree(KdTree&&) noexcept = default;
     KdTree& operator=(KdTree&&) noexcept = default;

@@ -39,6 +39,7 @@
 #include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/spatial/morton.hpp>
 
 #include <algorithm>
 #include <array>
@@ -49,10 +50,6 @@
 #include <string>
 #include <utility>
 #include <vector>
-
-#ifdef KINTSUGI_PARALLEL_TBB
-#include <tbb/parallel_sort.h>
-#endif
 
 namespace kintsugi {
 
@@ -84,46 +81,6 @@ struct OctreeCell {
     std::uint32_t level = 0;  ///< 0 = the whole cube, max_level = finest
 };
 
-namespace detail {
-/// Spreads the low 21 bits of v so that bit i moves to bit 3i.
-[[nodiscard]] inline std::uint64_t morton_spread(std::uint64_t v) {
-    v &= 0x1fffffULL;
-    v = (v | v << 32) & 0x1f00000000ffffULL;
-    v = (v | v << 16) & 0x1f0000ff0000ffULL;
-    v = (v | v << 8) & 0x100f00f00f00f00fULL;
-    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-    v = (v | v << 2) & 0x1249249249249249ULL;
-    return v;
-}
-/// Inverse of morton_spread.
-[[nodiscard]] inline std::uint32_t morton_compact(std::uint64_t v) {
-    v &= 0x1249249249249249ULL;
-    v = (v ^ (v >> 2)) & 0x10c30c30c30c30c3ULL;
-    v = (v ^ (v >> 4)) & 0x100f00f00f00f00fULL;
-    v = (v ^ (v >> 8)) & 0x1f0000ff0000ffULL;
-    v = (v ^ (v >> 16)) & 0x1f00000000ffffULL;
-    v = (v ^ (v >> 32)) & 0x1fffffULL;
-    return static_cast<std::uint32_t>(v);
-}
-/// Morton code of integer coordinates (x in bit 0, y in bit 1, z in bit 2).
-[[nodiscard]] inline std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-    return morton_spread(x) | (morton_spread(y) << 1) | (morton_spread(z) << 2);
-}
-/// Integer coordinates of a Morton code.
-[[nodiscard]] inline std::array<std::uint32_t, 3> morton_decode(std::uint64_t c) {
-    return {morton_compact(c), morton_compact(c >> 1), morton_compact(c >> 2)};
-}
-template <class T>
-void sort_maybe_parallel(std::vector<T>& v) {
-#ifdef KINTSUGI_PARALLEL_TBB
-    if (v.size() > 100000) {
-        tbb::parallel_sort(v.begin(), v.end());
-        return;
-    }
-#endif
-    std::sort(v.begin(), v.end());
-}
-}  // namespace detail
 
 /// Linear octree over a bounding cube (see the file comment).
 class Octree {
@@ -175,7 +132,7 @@ public:
 
     // ------------------------------------------------------------ cell geometry
     /// Minimum corner of cell c in finest-grid integer units.
-    [[nodiscard]] std::array<std::uint32_t, 3> cell_anchor(Index c) const { return detail::morton_decode(cells_[c].code); }
+    [[nodiscard]] std::array<std::uint32_t, 3> cell_anchor(Index c) const { return morton_decode(cells_[c].code); }
     /// Side of cell c in finest-grid units (2^(max_level - level)).
     [[nodiscard]] std::uint32_t cell_extent(Index c) const { return 1u << (max_level_ - static_cast<int>(cells_[c].level)); }
     /// Side length of cell c (input units).
@@ -211,7 +168,7 @@ public:
         const std::uint32_t top = (1u << max_level_) - 1;
         std::array<std::uint32_t, 3> g{};
         for (int k = 0; k < 3; ++k) g[k] = std::min(top, static_cast<std::uint32_t>(t[k]));
-        return locate_code(detail::morton_encode(g[0], g[1], g[2]));
+        return locate_code(morton_encode(g[0], g[1], g[2]));
     }
 
     /// The cell containing the finest-grid cell with Morton code `code`.
@@ -241,7 +198,7 @@ public:
                     const std::int64_t qx = a[0] + dx * s, qy = a[1] + dy * s, qz = a[2] + dz * s;
                     if (qx < 0 || qy < 0 || qz < 0 || qx >= n || qy >= n || qz >= n) continue;
                     // Same-size region Q next to c; its cells are one Morton range.
-                    const std::uint64_t q0 = detail::morton_encode(static_cast<std::uint32_t>(qx),
+                    const std::uint64_t q0 = morton_encode(static_cast<std::uint32_t>(qx),
                                                                    static_cast<std::uint32_t>(qy),
                                                                    static_cast<std::uint32_t>(qz));
                     const Index first = locate_code(q0);
@@ -351,7 +308,7 @@ public:
             for (std::int64_t y = a[1] >> sh; y <= (b[1] >> sh); ++y)
                 for (std::int64_t x = a[0] >> sh; x <= (b[0] >> sh); ++x)
                     starts[static_cast<std::size_t>(ns++)] =
-                        detail::morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                        morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
                                               static_cast<std::uint32_t>(z)) << (3 * sh);
         for (int i = 1; i < ns; ++i)  // insertion sort of at most 8 codes
             for (int j = i; j > 0 && starts[static_cast<std::size_t>(j)] < starts[static_cast<std::size_t>(j - 1)]; --j)
@@ -435,7 +392,7 @@ private:
                 const Scalar v = std::floor(t[k]);
                 g[k] = v <= 0 ? 0u : (v >= static_cast<Scalar>(n - 1) ? n - 1 : static_cast<std::uint32_t>(v));
             }
-            keyed[i] = {detail::morton_encode(g[0], g[1], g[2]), i};
+            keyed[i] = {morton_encode(g[0], g[1], g[2]), i};
         }, 4096);
         detail::sort_maybe_parallel(keyed);
 
@@ -492,13 +449,13 @@ private:
                             mask |= 1u << ((((b & 1) ? ox : 0) + 1) + 3 * (((b & 2) ? oy : 0) + 1) +
                                            9 * (((b & 4) ? oz : 0) + 1));
                     }
-                    const auto x = detail::morton_decode(parent);
+                    const auto x = morton_decode(parent);
                     for (int bit = 0; bit < 27; ++bit) {
                         if (!(mask & (1u << bit))) continue;
                         const std::int64_t cx = std::int64_t{x[0]} + bit % 3 - 1, cy = std::int64_t{x[1]} + (bit / 3) % 3 - 1,
                                            cz = std::int64_t{x[2]} + bit / 9 - 1;
                         if (cx < 0 || cy < 0 || cz < 0 || cx >= np || cy >= np || cz >= np) continue;
-                        add.push_back(detail::morton_encode(static_cast<std::uint32_t>(cx), static_cast<std::uint32_t>(cy),
+                        add.push_back(morton_encode(static_cast<std::uint32_t>(cx), static_cast<std::uint32_t>(cy),
                                                             static_cast<std::uint32_t>(cz)));
                     }
                 }
@@ -585,7 +542,7 @@ private:
     void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Classify& classify,
                  Visit& visit, Next& next) const {
         if (last - first > 1 && next(first, last) >= last) return;
-        const auto a = detail::morton_decode(code);
+        const auto a = morton_decode(code);
         const Scalar s = unit_ * static_cast<Scalar>(std::uint32_t{1} << (max_level_ - static_cast<int>(level)));
         const Vec3 lo(cube_min_[0] + unit_ * a[0], cube_min_[1] + unit_ * a[1], cube_min_[2] + unit_ * a[2]);
         const int cls = static_cast<int>(classify(lo, Vec3(lo[0] + s, lo[1] + s, lo[2] + s)));

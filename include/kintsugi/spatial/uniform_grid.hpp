@@ -12,6 +12,9 @@
 /// grid.for_each_in_ball(q, r, [&](kintsugi::Index i, kintsugi::Scalar d2) { ... });
 /// std::vector<kintsugi::Neighbor> nn;
 /// grid.radius_search_squared(q, r * r, nn);        // sorted, as KdTree's
+/// grid.knn(q, 8, nn);                               // a SpatialIndex, as KdTree
+/// kintsugi::UniformGrid out(h);                     // empty, cell side h
+/// kintsugi::Index i = out.append(p);                // grows: for outputs built point by point
 /// @endcode
 ///
 /// Cells of side `cell` (best: the usual query half side or radius, so that a query
@@ -20,9 +23,10 @@
 /// the extent. The points are stored sorted by cell and, within a cell, by index: a
 /// query visits its neighbours in an order fixed by the points alone (no sort per
 /// query; results independent of the thread count). Queries are const and
-/// thread-safe. Against KdTree: cheaper to build and to query when every query has
-/// the same small size (the smoothing filters' cubes), but not adaptive: a query much
-/// larger than a cell visits many cells.
+/// thread-safe. It models SpatialIndex. Against KdTree: cheaper to build and to
+/// query when every query has the same small size (the smoothing filters' cubes), and
+/// it grows (append); but not adaptive: a query much larger than a cell visits many
+/// cells, and a k-nearest query far from every point is slow.
 
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/core/concepts.hpp>
@@ -46,6 +50,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -56,6 +61,9 @@ namespace kintsugi {
 class UniformGrid {
 public:
     UniformGrid() = default;
+    /// An empty grid with cells of side `cell`, to be filled with append().
+    /// @throws invalid_input if cell is not a finite number > 0.
+    explicit UniformGrid(Scalar cell) { build(std::vector<Vec3>{}, cell); }
 
     /// Builds the grid over any PointSet (positions copied).
     /// @param cell cell side, in the points' units (> 0; enlarged when the extent
@@ -86,6 +94,11 @@ public:
 
         const std::size_t n = pts.size();
         validate(pts, cell);
+        requested_cell_ = cell;
+        count_ = n;
+        extra_point_.clear();
+        extra_index_.clear();
+        extra_cells_.clear();
         lo_ = Vec3::Constant(std::numeric_limits<Scalar>::max());
         Vec3 hi = Vec3::Constant(std::numeric_limits<Scalar>::lowest());
         for (std::size_t i = 0; i < n; ++i) {
@@ -205,9 +218,37 @@ public:
     }
 
     /// Number of points in the grid (left-out points not counted).
-    [[nodiscard]] std::size_t size() const { return index_.size(); }
+    [[nodiscard]] std::size_t size() const { return index_.size() + extra_index_.size(); }
     /// The cell side in use (the one asked for, or larger for a very wide extent).
     [[nodiscard]] Scalar cell_size() const { return cell_; }
+
+    /// Adds a point and returns its index (the number of indices given so far: the
+    /// built points' count plus the earlier appends). Appended points are held apart,
+    /// hashed by cell, until they are as many as the points merged so far (at least
+    /// 1024); then the grid is rebuilt over all of them, so n appends cost
+    /// O(n log n) in all. Queries see every point at once; the points not yet merged
+    /// come after the others, by cell in (z, y, x) order and by index within a cell.
+    /// Not thread-safe with concurrent queries.
+    /// @throws invalid_input if p has a NaN or infinite coordinate, or the grid was
+    ///   default-constructed (no cell side).
+    Index append(const Vec3& p) {
+        if (!p.allFinite())
+            throw invalid_input("kintsugi::UniformGrid::append: the point has a NaN or infinite coordinate");
+        if (!(requested_cell_ > 0))
+            throw invalid_input("kintsugi::UniformGrid::append: the grid has no cell side; construct it with one "
+                                "(UniformGrid(cell) or UniformGrid(points, cell))");
+        if (count_ + 1 >= none_)
+            throw invalid_input("kintsugi::UniformGrid::append: at most 2^32 - 2 points are supported");
+        const Index id = count_++;
+        extra_point_.push_back(p);
+        extra_index_.push_back(static_cast<std::uint32_t>(id));
+        std::uint64_t k = 0;
+        if (extra_point_.size() >= std::max<std::size_t>(1024, index_.size()) || !extra_key(p, k))
+            merge();
+        else
+            extra_cells_[k].push_back(static_cast<std::uint32_t>(extra_point_.size() - 1));
+        return id;
+    }
 
     /// Calls f(index, squared distance) for every point in the cube of half side h
     /// centred at c (boundary included), in the grid's order (see the file comment).
@@ -219,17 +260,17 @@ public:
     template <class F>
     void for_each_in_cube(const Vec3& c, Scalar h, F&& f, std::size_t max_candidates = no_limit) const {
         require_query(c, h, "for_each_in_cube");
-        auto test = [&](std::size_t j) {
-            const Vec3 d = point_[j] - c;
-            if (d.cwiseAbs().maxCoeff() <= h) f(static_cast<Index>(index_[j]), d.squaredNorm());
+        auto test = [&](Index i, const Vec3& p) {
+            const Vec3 d = p - c;
+            if (d.cwiseAbs().maxCoeff() <= h) f(i, d.squaredNorm());
         };
         if (max_candidates != no_limit && candidates(c, h, start_) > max_candidates) {
-            for_each_sampled(c, h, start_, max_candidates, test);
+            for_each_sampled(c, h, start_, max_candidates,
+                             [&](std::size_t j) { test(static_cast<Index>(index_[j]), point_[j]); });
+            if (!extra_point_.empty()) for_each_extra(c, h, test);  // appended points: all tested
             return;
         }
-        for_each_cell(c, h, [&](std::uint32_t cidx) {
-            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) test(j);
-        });
+        for_each_candidate(c, h, test);
     }
 
     /// No limit on the points a query tests (see for_each_in_cube and gather).
@@ -242,11 +283,9 @@ public:
     void for_each_in_ball(const Vec3& c, Scalar r, F&& f) const {
         require_query(c, r, "for_each_in_ball");
         const Scalar r2 = r * r;
-        for_each_cell(c, r, [&](std::uint32_t cidx) {
-            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
-                const Scalar d2 = (point_[j] - c).squaredNorm();
-                if (d2 <= r2) f(static_cast<Index>(index_[j]), d2);
-            }
+        for_each_candidate(c, r, [&](Index i, const Vec3& p) {
+            const Scalar d2 = (p - c).squaredNorm();
+            if (d2 <= r2) f(i, d2);
         });
     }
 
@@ -261,18 +300,51 @@ public:
             throw invalid_input("kintsugi::UniformGrid::radius_search_squared: the squared radius is NaN");
         require_query(q, 0, "radius_search_squared");
         if (squared_radius < 0) return;
-        const Scalar r = std::sqrt(squared_radius);
-        for_each_cell(q, r, [&](std::uint32_t cidx) {
-            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) {
-                const Scalar d2 = (point_[j] - q).squaredNorm();
-                if (d2 <= squared_radius) out.push_back({static_cast<Index>(index_[j]), d2});
-            }
+        for_each_candidate(q, std::sqrt(squared_radius), [&](Index i, const Vec3& p) {
+            const Scalar d2 = (p - q).squaredNorm();
+            if (d2 <= squared_radius) out.push_back({i, d2});
         });
-        if (sorted)
-            std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
-                return a.squared_distance < b.squared_distance ||
-                       (a.squared_distance == b.squared_distance && a.index < b.index);
+        if (sorted) detail::sort_neighbors(out);
+    }
+
+    /// The min(k, size()) nearest points to q, by increasing distance, ties by index
+    /// (the same answer as KdTree::knn). The search grows a cube from one cell until it
+    /// holds the k-th nearest point's ball: cheap when the k nearest lie within a few
+    /// cells, slow for a query far from every point.
+    /// @throws invalid_input if q has a NaN or infinite coordinate.
+    void knn(const Vec3& q, std::size_t k, std::vector<Neighbor>& out) const {
+        out.clear();
+        require_query(q, 0, "knn");
+        k = std::min(k, size());
+        if (k == 0) return;
+        for (Scalar h = cell_;; h *= 2) {
+            out.clear();
+            for_each_candidate(q, h, [&](Index i, const Vec3& p) {
+                const Vec3 d = p - q;
+                if (d.cwiseAbs().maxCoeff() <= h) out.push_back({i, d.squaredNorm()});
             });
+            // Done when the cube holds the ball through the k-th point (then every point
+            // at most that far is in out) or holds every point.
+            if (out.size() < k) continue;
+            detail::sort_neighbors(out);
+            if (out[k - 1].squared_distance <= h * h || out.size() == size()) break;
+        }
+        out.resize(k);
+    }
+    /// Convenience overload returning a new vector.
+    [[nodiscard]] std::vector<Neighbor> knn(const Vec3& q, std::size_t k) const {
+        std::vector<Neighbor> out;
+        knn(q, k, out);
+        return out;
+    }
+
+    /// The nearest point to q (ties by index).
+    /// @throws invalid_input if the grid is empty or q has a NaN or infinite coordinate.
+    [[nodiscard]] Neighbor nearest(const Vec3& q) const {
+        if (size() == 0) throw invalid_input("kintsugi::UniformGrid::nearest: the grid is empty");
+        std::vector<Neighbor> nn;
+        knn(q, 1, nn);
+        return nn.front();
     }
 
     /// The points in the cube of half side h centred at c (boundary included), in the
@@ -306,6 +378,7 @@ public:
             });
             index.resize(n);
             dist2.resize(n);
+            append_extras(c, h, index, dist2);  // appended points: all tested
             return;
         }
 #if defined(__SSE2__)
@@ -348,6 +421,7 @@ public:
         });
         index.resize(n);
         dist2.resize(n);
+        append_extras(c, h, index, dist2);
     }
 
 private:
@@ -362,6 +436,85 @@ private:
             if (!pts[i].allFinite())
                 throw invalid_input("kintsugi::UniformGrid: point " + std::to_string(i) +
                                     " has a NaN or infinite coordinate; remove it first");
+    }
+    /// gather() on the appended points not merged yet (double precision).
+    void append_extras(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {
+        if (extra_point_.empty()) return;
+        for_each_extra(c, h, [&](Index i, const Vec3& p) {
+            const Vec3 d = p - c;
+            if (d.cwiseAbs().maxCoeff() <= h) {
+                index.push_back(static_cast<std::uint32_t>(i));
+                dist2.push_back(d.squaredNorm());
+            }
+        });
+    }
+    /// Calls visit(index, position) for every point of the cells that may hold points
+    /// of the cube of half side h centred at c: merged points, then appended ones.
+    template <class Visit>
+    void for_each_candidate(const Vec3& c, Scalar h, Visit&& visit) const {
+        for_each_cell(c, h, [&](std::uint32_t cidx) {
+            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) visit(static_cast<Index>(index_[j]), point_[j]);
+        });
+        if (!extra_point_.empty()) for_each_extra(c, h, visit);
+    }
+    /// The appended points not merged yet, of the cells that meet the cube: by cell in
+    /// (z, y, x) order, then by index; all of them in index order when the cube spans
+    /// more cells than they fill.
+    template <class Visit>
+    void for_each_extra(const Vec3& c, Scalar h, Visit&& visit) const {
+        const Vec3 a = (c - lo_) * inv_;
+        const Scalar r = h * inv_;
+        std::array<Scalar, 3> l{}, u{};
+        for (int k = 0; k < 3; ++k) {
+            l[k] = std::floor(a[k] - r);
+            u[k] = std::floor(a[k] + r);
+        }
+        const double box_cells = (u[0] - l[0] + 1) * (u[1] - l[1] + 1) * (u[2] - l[2] + 1);
+        if (!(box_cells <= static_cast<double>(extra_cells_.size())) || !in_extra_range(l) || !in_extra_range(u)) {
+            for (std::size_t j = 0; j < extra_point_.size(); ++j) visit(static_cast<Index>(extra_index_[j]), extra_point_[j]);
+            return;
+        }
+        for (auto z = static_cast<std::int64_t>(l[2]); z <= static_cast<std::int64_t>(u[2]); ++z)
+            for (auto y = static_cast<std::int64_t>(l[1]); y <= static_cast<std::int64_t>(u[1]); ++y)
+                for (auto x = static_cast<std::int64_t>(l[0]); x <= static_cast<std::int64_t>(u[0]); ++x) {
+                    const auto it = extra_cells_.find(pack_extra(x, y, z));
+                    if (it == extra_cells_.end()) continue;
+                    for (std::uint32_t j : it->second) visit(static_cast<Index>(extra_index_[j]), extra_point_[j]);
+                }
+    }
+    // Appended points are keyed by unclamped cell coordinates relative to lo_, offset
+    // by 2^20 (21 bits each): any point within 2^20 cells of the grid's corner.
+    static constexpr Scalar extra_reach_ = Scalar(1 << 20);
+    static bool in_extra_range(const std::array<Scalar, 3>& g) {
+        for (Scalar v : g)
+            if (!(v >= -extra_reach_ && v < extra_reach_)) return false;
+        return true;
+    }
+    static std::uint64_t pack_extra(std::int64_t x, std::int64_t y, std::int64_t z) {
+        const std::int64_t o = std::int64_t{1} << 20;
+        return key({x + o, y + o, z + o});
+    }
+    bool extra_key(const Vec3& p, std::uint64_t& k) const {
+        const Vec3 a = (p - lo_) * inv_;
+        const std::array<Scalar, 3> g{std::floor(a[0]), std::floor(a[1]), std::floor(a[2])};
+        if (!in_extra_range(g)) return false;
+        k = pack_extra(static_cast<std::int64_t>(g[0]), static_cast<std::int64_t>(g[1]), static_cast<std::int64_t>(g[2]));
+        return true;
+    }
+    /// Rebuilds the grid over the merged and the appended points (indices kept; the
+    /// points the keep filter left out stay out).
+    void merge() {
+        std::vector<Vec3> all(count_, Vec3::Zero());
+        std::vector<unsigned char> present(count_, 0);
+        for (std::size_t j = 0; j < index_.size(); ++j) {
+            all[index_[j]] = point_[j];
+            present[index_[j]] = 1;
+        }
+        for (std::size_t j = 0; j < extra_point_.size(); ++j) {
+            all[extra_index_[j]] = extra_point_[j];
+            present[extra_index_[j]] = 1;
+        }
+        build(all, requested_cell_, [&present](std::size_t i) { return present[i] != 0; });
     }
     static void require_query(const Vec3& c, Scalar size, const char* fn) {
         if (!c.allFinite() || std::isnan(size))
@@ -466,6 +619,12 @@ private:
     }
     Vec3 lo_ = Vec3::Zero();
     Scalar cell_ = 1, inv_ = 1;
+    Scalar requested_cell_ = 0;  // the cell side asked for (0: none yet)
+    std::size_t count_ = 0;      // indices given: built points + appends
+    // Appended points not merged yet: positions, indices, and their cells (key -> slots).
+    std::vector<Vec3> extra_point_;
+    std::vector<std::uint32_t> extra_index_;
+    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> extra_cells_;
     std::vector<std::uint32_t> index_, start_, table_cell_, nbr_cell_;
     std::vector<std::size_t> nbr_start_;
     std::vector<Vec3> point_;
@@ -481,5 +640,7 @@ private:
     std::vector<std::array<std::uint32_t, 27>> nbr_scratch_;
     std::vector<std::uint8_t> count_scratch_;
 };
+
+static_assert(SpatialIndex<UniformGrid>);
 
 }  // namespace kintsugi

@@ -364,7 +364,7 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
             reach.push_back(fraction * sup[by_band[k].second].radius);
         }
         const Scalar rmax = fraction * std::ldexp(Scalar(1), by_band[b0].first + 1);
-        const KdTree tree(std::move(centres), 0);
+        const auto tree = KdTree::adopt(std::move(centres));
         parallel_for(0, x.size(), [&](std::size_t i) {
             if (!out[i]) return;
             thread_local std::vector<Neighbor> nb;
