@@ -28,12 +28,7 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
-#include <kintsugi/spatial/morton.hpp>
-
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Simple_cartesian.h>
+#include <kintsugi/spatial/triangle_index.hpp>
 
 #include <Eigen/Geometry>
 
@@ -90,95 +85,9 @@ struct DistanceReport {
 
 namespace detail {
 
-/// Exact closest points on a triangle mesh: CGAL AABB tree over its non-degenerate
-/// triangles (zero-area faces are left out: their edges belong to their neighbours).
-/// Queries are const and thread-safe. Not copyable or movable (the tree points into it).
-class TriangleDistance {
-public:
-    using K = CGAL::Simple_cartesian<double>;
-    using Triangle = K::Triangle_3;
-    using Iterator = std::vector<Triangle>::const_iterator;
-    using Primitive = CGAL::AABB_triangle_primitive<K, Iterator>;
-    using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
-
-    struct Hit {
-        Scalar distance = 0;
-        Index face = 0;
-        Vec3 closest = Vec3::Zero();
-    };
-
-    /// @pre m validated (indices in range, finite, positive area).
-    explicit TriangleDistance(const IndexedMesh& m) {
-        triangles_.reserve(m.faces.size());
-        face_of_.reserve(m.faces.size());
-        auto P = [&](Index v) {
-            const Vec3& p = m.vertices[v];
-            return K::Point_3(p.x(), p.y(), p.z());
-        };
-        for (Index f = 0; f < m.faces.size(); ++f) {
-            const Face& t = m.faces[f];
-            const Vec3& a = m.vertices[t[0]];
-            if ((m.vertices[t[1]] - a).cross(m.vertices[t[2]] - a).squaredNorm() <= 0) continue;
-            triangles_.emplace_back(P(t[0]), P(t[1]), P(t[2]));
-            face_of_.push_back(f);
-        }
-        tree_.insert(triangles_.cbegin(), triangles_.cend());
-        tree_.build();
-        tree_.accelerate_distance_queries();  // built now, so that queries may run in parallel
-    }
-    TriangleDistance(const TriangleDistance&) = delete;
-    TriangleDistance& operator=(const TriangleDistance&) = delete;
-
-    [[nodiscard]] Hit closest(const Vec3& q) const { return closest_run(&q, 1).front(); }
-
-    /// Closest points of a run of queries, in order. Each query starts from the previous
-    /// answer (CGAL's hint), which is much faster when consecutive queries are close;
-    /// the answers do not depend on it except for the choice among equidistant faces.
-    void closest_run(const Vec3* q, std::size_t n, Hit* out) const {
-        typename Tree::Point_and_primitive_id hint;
-        for (std::size_t i = 0; i < n; ++i) {
-            const K::Point_3 p(q[i].x(), q[i].y(), q[i].z());
-            hint = i == 0 ? tree_.closest_point_and_primitive(p) : tree_.closest_point_and_primitive(p, hint);
-            const K::Point_3& c = hint.first;
-            out[i].closest = Vec3(c.x(), c.y(), c.z());
-            out[i].distance = (out[i].closest - q[i]).norm();
-            out[i].face = face_of_[static_cast<std::size_t>(hint.second - triangles_.cbegin())];
-        }
-    }
-    [[nodiscard]] std::vector<Hit> closest_run(const Vec3* q, std::size_t n) const {
-        std::vector<Hit> out(n);
-        closest_run(q, n, out.data());
-        return out;
-    }
-
-private:
-    std::vector<Triangle> triangles_;
-    std::vector<Index> face_of_;
-    Tree tree_;
-};
-
 /// Checks what every distance function needs; throws invalid_input naming `fn` and `what`.
 inline void validate_distance_mesh(const IndexedMesh& m, const char* fn, const char* what) {
-    const std::string where = std::string(fn) + ": " + what;
-    if (m.vertices.empty() || m.faces.empty())
-        throw invalid_input(where + " is empty (" + std::to_string(m.vertices.size()) + " vertices, " +
-                            std::to_string(m.faces.size()) + " faces); pass a mesh with faces");
-    for (std::size_t v = 0; v < m.vertices.size(); ++v)
-        if (!m.vertices[v].allFinite())
-            throw invalid_input(where + " has a NaN or infinite coordinate at vertex " + std::to_string(v) +
-                                "; remove or fix it");
-    double area = 0;
-    for (std::size_t f = 0; f < m.faces.size(); ++f) {
-        const Face& t = m.faces[f];
-        for (int k = 0; k < 3; ++k)
-            if (t[k] >= m.vertices.size())
-                throw invalid_input(where + ": face " + std::to_string(f) + " uses vertex " + std::to_string(t[k]) +
-                                    " but there are " + std::to_string(m.vertices.size()) +
-                                    " vertices; fix or remove the face");
-        area += (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]).norm();
-    }
-    if (!(area > 0))
-        throw invalid_input(where + " has zero surface area (every face is degenerate); pass a real surface");
+    validate_triangle_mesh(m, std::string(fn) + ": " + what);
 }
 
 inline void validate_points(const std::vector<Vec3>& pts, const char* fn, const char* what) {
@@ -242,32 +151,13 @@ inline SurfaceSamples sample_surface(const IndexedMesh& m, std::size_t n, std::u
     return s;
 }
 
-/// Closest points of all queries. As CGAL's own Hausdorff code does, the queries are
-/// put in space-filling-curve order and each starts from the previous answer (see
-/// TriangleDistance::closest_run), in fixed runs of 256 run in parallel; progress is
-/// reported between blocks. The runs do not depend on the thread count, so neither do
-/// the results.
-inline std::vector<TriangleDistance::Hit> closest_points(const TriangleDistance& tree, const std::vector<Vec3>& q,
-                                                         Progress* progress) {
-    constexpr std::size_t run = 256, block = 64 * run;
-    const std::vector<Index> order = morton_order(q);  // CGAL's hint works best on close queries
-    std::vector<Vec3> sorted(q.size());
-    for (std::size_t i = 0; i < q.size(); ++i) sorted[i] = q[order[i]];
-    std::vector<TriangleDistance::Hit> hits(q.size());
-    for (std::size_t b = 0; b < q.size(); b += block) {
-        if (progress) progress->update(static_cast<double>(b) / static_cast<double>(q.size()));
-        const std::size_t e = std::min(q.size(), b + block);
-        parallel_for(
-            0, (e - b + run - 1) / run,
-            [&](std::size_t c) {
-                const std::size_t first = b + c * run, last = std::min(e, first + run);
-                tree.closest_run(sorted.data() + first, last - first, hits.data() + first);
-            },
-            1);
-    }
-    std::vector<TriangleDistance::Hit> out(q.size());
-    for (std::size_t i = 0; i < q.size(); ++i) out[order[i]] = hits[i];
-    return out;
+/// Closest points of all queries (TriangleIndex::closest_points), reporting progress
+/// between blocks when `progress` is given.
+inline std::vector<ClosestPoint> closest_points(const TriangleIndex& index, const std::vector<Vec3>& q,
+                                                Progress* progress) {
+    return index.closest_points(q, [progress](double done) {
+        if (progress) progress->update(done);
+    });
 }
 
 /// Unit face normals (zero for degenerate faces).
@@ -362,10 +252,10 @@ inline DistanceReport compare_meshes(const IndexedMesh& a, const IndexedMesh& b,
         progress.check();
 
         progress.stage("build", 0.05, 0.2);
-        const TriangleDistance ta(a), tb(b);
+        const TriangleIndex ta(a), tb(b);
 
         auto directed = [&](const SurfaceSamples& s, const std::vector<Vec3>& verts, const std::vector<Vec3>& ns,
-                            const std::vector<Vec3>& nt, const TriangleDistance& target, double& normal_sum) {
+                            const std::vector<Vec3>& nt, const TriangleIndex& target, double& normal_sum) {
             const auto hits = closest_points(target, s.points, &progress);
             std::vector<double> d(hits.size());
             normal_sum = 0;
@@ -422,7 +312,7 @@ inline DistanceReport compare_points_impl(const std::vector<Vec3>& pts, const st
         progress.check();
 
         progress.stage("build", 0.05, 0.2);
-        const TriangleDistance tb(b);
+        const TriangleIndex tb(b);
         const KdTree kd(pts);
 
         progress.stage("a_to_b", 0.2, 0.6);
@@ -562,7 +452,7 @@ template <PointSet P, TriangleMesh M>
     detail::validate_distance_mesh(m, fn, "the mesh");
     std::vector<Scalar> out(pts.size());
     if (pts.empty()) return out;
-    const detail::TriangleDistance tree(m);
+    const TriangleIndex tree(m);
     const auto hits = detail::closest_points(tree, pts, nullptr);
     for (std::size_t i = 0; i < pts.size(); ++i) out[i] = frame.to_world(hits[i].distance);
     return out;
