@@ -235,7 +235,7 @@ private:
         }
         params_ = params;
         params_.control = {};
-        tree_ = KdTree(std::move(pts));
+        tree_ = KdTree::adopt(std::move(pts));
     }
 
     void check_query(const Vec3& x, const char* what) const {

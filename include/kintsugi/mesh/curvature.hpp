@@ -146,7 +146,7 @@ inline CurvatureResult knn_fits(std::vector<Vec3> pts, const std::vector<Vec3>* 
                                 const std::vector<Vec3>& normals, const CurvatureParams& params) {
     return run_guarded(params, [&](Progress& progress) {
         progress.stage("neighbours", 0.0, 0.1);
-        const KdTree tree(std::move(pts));
+        const auto tree = KdTree::adopt(std::move(pts));
         progress.stage("fit", 0.1, 1.0);
         const std::size_t k = params.k;
         const int degree = params.degree;
