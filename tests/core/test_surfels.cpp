@@ -13,6 +13,8 @@
 
 #include <array>
 #include <filesystem>
+#include <string>
+#include <unistd.h>
 #include <vector>
 
 namespace ks = kintsugi;
@@ -112,7 +114,8 @@ TEST_CASE("a point cloud with a missing radius reports none") {
 }
 
 TEST_CASE_TEMPLATE("surfels round-trip through a PLY file with a radius property", H, CloudHolder, DiskHolder) {
-    const auto dir = std::filesystem::temp_directory_path() / "kintsugi_test_surfels";
+    // One folder per process: CTest runs the two instantiations in parallel.
+    const auto dir = std::filesystem::temp_directory_path() / ("kintsugi_test_surfels_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     const auto file = dir / "surfels.ply";
     ks::PointCloud src{kP, kN, kR};
