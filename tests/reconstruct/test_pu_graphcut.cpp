@@ -70,6 +70,36 @@ Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* k
     return o;
 }
 
+/// The acceptance input on a real mesh: `draw` seeded samples, `holes` holes of radius
+/// hole_radius x the diagonal cut around random vertices, the first `surface` samples
+/// outside them with 0.1 % Gaussian noise, then `outliers` uniform points (random
+/// normals) in the bounding box enlarged 1.1 times.
+void holey_noisy_sample(const ks::IndexedMesh& ref, const ks::BoundingBox& bb, std::size_t draw, std::size_t surface,
+                        std::size_t outliers, int holes, double hole_radius, std::uint64_t seed,
+                        std::vector<ks::Vec3>& pts, std::vector<ks::Vec3>& nn) {
+    const double diag = bb.diagonal();
+    std::vector<ks::Vec3> nrm;
+    const std::vector<ks::Vec3> all = kintsugi_test::sample_mesh(ref, draw, seed, &nrm);
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> g(0, 1);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<ks::Vec3> centres;
+    for (int h = 0; h < holes; ++h) centres.push_back(ref.vertices[rng() % ref.vertices.size()]);
+    for (std::size_t i = 0; i < all.size() && pts.size() < surface; ++i) {
+        bool in_hole = false;
+        for (const auto& h : centres) in_hole = in_hole || (all[i] - h).norm() < hole_radius * diag;
+        if (in_hole) continue;
+        pts.push_back(all[i] + 0.001 * diag / std::sqrt(3.0) * ks::Vec3(g(rng), g(rng), g(rng)));
+        nn.push_back(nrm[i]);
+    }
+    REQUIRE(pts.size() == surface);
+    const ks::Vec3 c = bb.center(), e = 1.1 * bb.extent();
+    while (pts.size() < surface + outliers) {
+        pts.push_back(c + ks::Vec3((u(rng) - .5) * e.x(), (u(rng) - .5) * e.y(), (u(rng) - .5) * e.z()));
+        nn.push_back(ks::Vec3(g(rng), g(rng), g(rng)).normalized());
+    }
+}
+
 }  // namespace
 
 TEST_CASE("reconstruct_pu_graphcut: sphere with 10 % outliers -> one closed genus-0 surface") {
@@ -316,28 +346,8 @@ TEST_CASE("reconstruct_pu_graphcut: real mesh shipped — tests/data/bunny.off s
     const ks::IndexedMesh ref = ks::read_mesh(std::string(KINTSUGI_TEST_DATA_DIR) + "/bunny.off");
     ks::BoundingBox bb;
     for (const auto& v : ref.vertices) bb.extend(v);
-    const double diag = bb.diagonal();
-    std::vector<ks::Vec3> nrm;
-    const std::vector<ks::Vec3> all = kintsugi_test::sample_mesh(ref, 45000, 11, &nrm);
-    std::mt19937_64 rng(11);
-    std::normal_distribution<double> g(0, 1);
-    std::uniform_real_distribution<double> u(0, 1);
-    std::vector<ks::Vec3> holes;
-    for (int h = 0; h < 2; ++h) holes.push_back(ref.vertices[rng() % ref.vertices.size()]);
     std::vector<ks::Vec3> pts, nn;
-    for (std::size_t i = 0; i < all.size() && pts.size() < 36000; ++i) {
-        bool in_hole = false;
-        for (const auto& h : holes) in_hole = in_hole || (all[i] - h).norm() < 0.03 * diag;
-        if (in_hole) continue;
-        pts.push_back(all[i] + 0.001 * diag / std::sqrt(3.0) * ks::Vec3(g(rng), g(rng), g(rng)));
-        nn.push_back(nrm[i]);
-    }
-    REQUIRE(pts.size() == 36000);
-    const ks::Vec3 c = bb.center(), e = 1.1 * bb.extent();
-    while (pts.size() < 40000) {
-        pts.push_back(c + ks::Vec3((u(rng) - .5) * e.x(), (u(rng) - .5) * e.y(), (u(rng) - .5) * e.z()));
-        nn.push_back(ks::Vec3(g(rng), g(rng), g(rng)).normalized());
-    }
+    holey_noisy_sample(ref, bb, 45000, 36000, 4000, 2, 0.03, 11, pts, nn);
     const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn));
     REQUIRE(r.status == ks::Status::ok);
     const auto rep = check_guarantee(r.mesh);
@@ -392,28 +402,8 @@ TEST_CASE("reconstruct_pu_graphcut: real mesh — bunny00 sampled with noise, 3 
     const ks::IndexedMesh ref = ks::read_mesh(path);
     ks::BoundingBox bb;
     for (const auto& v : ref.vertices) bb.extend(v);
-    const double diag = bb.diagonal();
-    std::vector<ks::Vec3> nrm;
-    std::vector<ks::Vec3> all = kintsugi_test::sample_mesh(ref, 110000, 7, &nrm);
-    std::mt19937_64 rng(7);
-    std::normal_distribution<double> g(0, 1);
-    std::uniform_real_distribution<double> u(0, 1);
-    std::vector<ks::Vec3> holes;
-    for (int h = 0; h < 3; ++h) holes.push_back(ref.vertices[rng() % ref.vertices.size()]);
     std::vector<ks::Vec3> pts, nn;
-    for (std::size_t i = 0; i < all.size() && pts.size() < 90000; ++i) {
-        bool in_hole = false;
-        for (const auto& h : holes) in_hole = in_hole || (all[i] - h).norm() < 0.04 * diag;
-        if (in_hole) continue;
-        pts.push_back(all[i] + 0.001 * diag / std::sqrt(3.0) * ks::Vec3(g(rng), g(rng), g(rng)));
-        nn.push_back(nrm[i]);
-    }
-    REQUIRE(pts.size() == 90000);
-    const ks::Vec3 c = bb.center(), e = 1.1 * bb.extent();
-    while (pts.size() < 100000) {
-        pts.push_back(c + ks::Vec3((u(rng) - .5) * e.x(), (u(rng) - .5) * e.y(), (u(rng) - .5) * e.z()));
-        nn.push_back(ks::Vec3(g(rng), g(rng), g(rng)).normalized());
-    }
+    holey_noisy_sample(ref, bb, 110000, 90000, 10000, 3, 0.04, 7, pts, nn);
     const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn));
     REQUIRE(r.status == ks::Status::ok);
     const auto rep = check_guarantee(r.mesh);
