@@ -274,13 +274,17 @@ struct PUFieldResult {
 
 namespace detail {
 
-inline void pu_validate(const std::vector<Vec3>& pts, const std::vector<Vec3>& nrm, const PUFieldParams& params) {
-    const std::string fn = "kintsugi::PUField::build: ";
-    if (params.max_level < 1 || params.max_level > 12)
-        throw invalid_input(fn + "max_level = " + std::to_string(params.max_level) +
+/// The checks of PUField::build that do not depend on the points' spread, with messages
+/// starting with `fn`. tiny_normals: a normal whose squared length underflows (|n| near
+/// 1e-200) still counts as a direction, for callers that rescale normals before use
+/// (reconstruct_pu_graphcut); PUField::build normalises them itself and refuses those.
+inline void pu_validate_input(const std::vector<Vec3>& pts, const std::vector<Vec3>& nrm, int max_level,
+                              Scalar epsilon, const std::string& fn, bool tiny_normals) {
+    if (max_level < 1 || max_level > 12)
+        throw invalid_input(fn + "max_level = " + std::to_string(max_level) +
                             " is outside [1, 12]; the paper uses 8 or 9");
-    if (!(params.epsilon > 0) || !std::isfinite(params.epsilon))
-        throw invalid_input(fn + "epsilon = " + std::to_string(params.epsilon) +
+    if (!(epsilon > 0) || !std::isfinite(epsilon))
+        throw invalid_input(fn + "epsilon = " + std::to_string(epsilon) +
                             " must be positive and finite (a fraction of the longest bounding-box side, e.g. 4e-3)");
     if (pts.size() < 4)
         throw invalid_input(fn + "needs at least 4 points, got " + std::to_string(pts.size()));
@@ -293,10 +297,16 @@ inline void pu_validate(const std::vector<Vec3>& pts, const std::vector<Vec3>& n
         if (!nrm[i].allFinite())
             throw invalid_input(fn + "the normal of point " + std::to_string(i) +
                                 " has a NaN or infinite component; fix or re-estimate the normals");
-        if (!(nrm[i].squaredNorm() > 0))
+        const bool zero = tiny_normals ? !(nrm[i].cwiseAbs().maxCoeff() > 0) : !(nrm[i].squaredNorm() > 0);
+        if (zero)
             throw invalid_input(fn + "the normal of point " + std::to_string(i) +
                                 " has zero length; fix or re-estimate the normals");
     }
+}
+
+inline void pu_validate(const std::vector<Vec3>& pts, const std::vector<Vec3>& nrm, const PUFieldParams& params) {
+    const std::string fn = "kintsugi::PUField::build: ";
+    pu_validate_input(pts, nrm, params.max_level, params.epsilon, fn, false);
     // Coplanar / collinear: smallest spread of the points relative to the largest.
     Vec3 mean = Vec3::Zero();
     for (const auto& p : pts) mean += p;

@@ -229,25 +229,7 @@ inline void pu_graphcut_validate(const std::vector<Vec3>& pts, const std::vector
                             " must lie in [0, 1]; the default is 0.01");
     // The checks of PUField::build that do not depend on the points' spread (that one
     // runs per part, in the part's frame: pu_graphcut_validate_part).
-    if (p.max_level < 1 || p.max_level > 12)
-        throw invalid_input(fn + "max_level = " + std::to_string(p.max_level) + " is outside [1, 12]; the paper uses 8 or 9");
-    if (!(p.epsilon > 0) || !std::isfinite(p.epsilon))
-        throw invalid_input(fn + "epsilon = " + std::to_string(p.epsilon) +
-                            " must be positive and finite (a fraction of the longest bounding-box side, e.g. 4e-3)");
-    if (pts.size() < 4) throw invalid_input(fn + "needs at least 4 points, got " + std::to_string(pts.size()));
-    if (nrm.size() != pts.size())
-        throw invalid_input(fn + "the points have no normals (or not one per point); estimate oriented normals first "
-                            "(kintsugi::estimate_normals)");
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-        if (!pts[i].allFinite())
-            throw invalid_input(fn + "point " + std::to_string(i) + " has a NaN or infinite coordinate; remove it first");
-        if (!nrm[i].allFinite())
-            throw invalid_input(fn + "the normal of point " + std::to_string(i) +
-                                " has a NaN or infinite component; fix or re-estimate the normals");
-        if (!(nrm[i].cwiseAbs().maxCoeff() > 0))  // not squaredNorm: 1e-200 is a direction too
-            throw invalid_input(fn + "the normal of point " + std::to_string(i) +
-                                " has zero length; fix or re-estimate the normals");
-    }
+    pu_validate_input(pts, nrm, p.max_level, p.epsilon, fn, /*tiny_normals=*/true);
 }
 
 /// PUField::build's check of one part (in its frame): "" when it passes, else the
