@@ -81,6 +81,12 @@ struct PointSetSurfaceParams {
     Scalar tolerance = 1e-4;
     /// Progress and cancellation of the batch projection (unused by the class).
     RunControl control{};
+    /// The support radius is at least this times the distance from x to its nearest
+    /// sample (every sample within it then weighs in). Range 0 (off, the default) or
+    /// >= 1. Far from the samples, in a hole, the k nearest are one arc of the hole's
+    /// rim and the fit leans to that side; 2 takes the whole rim (surfel hole filling:
+    /// docs/methods/surfel_upsampling.md).
+    Scalar min_support_factor = 0;
 };
 
 /// One projection onto the surface.
@@ -221,6 +227,9 @@ private:
             throw invalid_input(fn + ": params.max_iterations is 0; pass at least 1 (default 20)");
         if (!(params.tolerance > 0) || !std::isfinite(params.tolerance))
             throw invalid_input(fn + ": params.tolerance must be positive and finite (default 1e-4)");
+        if (!(params.min_support_factor == 0 || params.min_support_factor >= 1) ||
+            !std::isfinite(params.min_support_factor))
+            throw invalid_input(fn + ": params.min_support_factor must be 0 (off) or a finite number >= 1");
         std::vector<Vec3> pts = gather_points(points);
         normals_ = gather_normals(points);
         for (std::size_t i = 0; i < n; ++i) {
@@ -251,6 +260,10 @@ private:
         detail::pss::LocalFit f;
         f.origin = x;
         if (nn.empty()) return f;
+        if (params_.min_support_factor > 0) {
+            const Scalar wide2 = params_.min_support_factor * params_.min_support_factor * nn.front().squared_distance;
+            if (wide2 > nn.back().squared_distance) tree_.radius_search_squared(x, wide2, nn);
+        }
         const Scalar h2 = nn.back().squared_distance;
         f.h = std::sqrt(h2);
         Scalar sw = 0, spn = 0, spp = 0;
