@@ -88,6 +88,22 @@ awk '{printf "%.17g %.17g %.17g %s %s %s\n", $1*1e200, $2*1e200, $3*1e200, $4, $
 expect 0 "reconstruct at 1e200" -- "$bin" reconstruct "$work/kitten_huge.xyz" "$work/huge.ply" --max-level 6 --json
 json_check "1e200: one closed surface" "j['components']==1 and j['closed'] and j['vertices']>500"
 
+# ---- upsample: surfels with a radius property; a filled set needs nothing more; bad radius
+expect 0 "upsample --json" -- "$bin" upsample "$cloud" "$work/surfels.ply" --radius-rel 0.01 --json
+json_check "upsample fields" "j['input_surfels']==5210 and j['surfels']>5210 and j['new_surfels']==j['surfels']-5210 and j['coverage_verified'] is True and j['level_counts']==[j['surfels']] and j['input_had_radii'] is False"
+if head -c 400 "$work/surfels.ply" | grep -q "property double radius"; then ok; else bad "upsample output has no radius property"; fi
+expect 0 "upsample of a filled set" -- "$bin" upsample "$work/surfels.ply" "$work/surfels2.ply" --radius-rel 0.01 --json
+json_check "filled set unchanged" "j['input_had_radii'] is True and j['new_surfels']==0 and j['coverage_verified'] is True"
+expect 0 "upsample levels" -- "$bin" upsample "$cloud" "$work/lod.ply" --radius-rel 0.02 --levels 3 --json
+json_check "upsample level counts" "len(j['level_counts'])==3 and j['level_counts'][0]<j['level_counts'][1]<j['level_counts'][2]==j['surfels']"
+expect 2 "upsample without a radius" -- "$bin" upsample "$cloud" "$work/u.ply"
+stderr_has "upsample radius message" "radius"
+expect 2 "upsample both radii" -- "$bin" upsample "$cloud" "$work/u.ply" --radius 0.1 --radius-rel 0.01
+expect 2 "upsample negative radius" -- "$bin" upsample "$cloud" "$work/u.ply" --radius -1
+expect 1 "upsample without normals" -- "$bin" upsample "$mesh" "$work/u.ply" --radius 0.1
+stderr_has "upsample normals message" "no normals"
+if [ ! -e "$work/u.ply" ]; then ok; else bad "failed upsample wrote a file"; fi
+
 # ---- option values: checked while parsing, before any input is read; exit 2, the option named
 missing=$work/no_such_input.ply
 usage() {  # usage DESCRIPTION OPTION -- command...: exit 2, stderr names OPTION, within 20 s
