@@ -1,0 +1,457 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+// Octree RBF (Miura, Sone, Masuda; Carr et al. 2001): interpolation of the points and
+// offsets, seams with and without the blend, accuracy on real meshes, containers,
+// bad input, cancellation, determinism.
+#include "test_data.hpp"
+#include <doctest/doctest.h>
+
+#include "reconstruct/pu_test_data.hpp"
+
+#include <kintsugi/adapters/cgal.hpp>
+#include <kintsugi/adapters/projection.hpp>
+#include <kintsugi/adapters/std_vector.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/io/read.hpp>
+#include <kintsugi/mesh/geometry.hpp>
+#include <kintsugi/metrics/distance.hpp>
+#include <kintsugi/metrics/topology_report.hpp>
+#include <kintsugi/rbf/rbf_octree.hpp>
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <stop_token>
+#include <string>
+#include <vector>
+
+namespace ks = kintsugi;
+using V = std::vector<ks::Vec3>;
+
+namespace {
+
+using Epick = CGAL::Exact_predicates_inexact_constructions_kernel;
+/// A user struct with float coordinates, read through projections.
+struct Sample {
+    float xyz[3];
+    float normal[3];
+};
+
+/// n points on the sphere |x - c| = R with outward normals.
+void sphere_points(std::size_t n, std::uint64_t seed, V& p, V& nrm, const ks::Vec3& c = {0.2, -0.1, 0.3},
+                   double R = 1.0) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> g;
+    for (std::size_t i = 0; i < n; ++i) {
+        const ks::Vec3 v = ks::Vec3(g(rng), g(rng), g(rng)).normalized();
+        p.push_back(c + R * v);
+        nrm.push_back(v);
+    }
+}
+
+/// One closed, manifold, connected surface.
+void check_closed_surface(const ks::IndexedMesh& m) {
+    const auto t = ks::topology_report(m);
+    CHECK(t.closed);
+    CHECK(t.manifold);
+    CHECK(t.components == 1);
+}
+
+double diagonal(const V& pts) {
+    ks::BoundingBox b;
+    for (const auto& p : pts) b.extend(p);
+    return b.diagonal();
+}
+
+/// Largest jumps of f and ∇f across the faces shared by two live leaves: 9 points on
+/// the far face of each of the first max_cells live leaves, evaluated ±1e-9 x the
+/// leaf side off it.
+std::pair<double, double> seam_jumps(const ks::RBFOctreeField& f, std::size_t max_cells) {
+    const auto cells = f.cells();
+    auto live_at = [&](const ks::Vec3& y) {
+        for (const auto& c : cells)
+            if ((y.array() >= c.min.array()).all() && (y.array() < (c.min + ks::Vec3::Constant(c.side)).array()).all())
+                return c.live;
+        return false;
+    };
+    double jf = 0, jg = 0;
+    std::size_t used = 0;
+    for (const auto& c : cells) {
+        if (!c.live || used >= max_cells) continue;
+        ++used;
+        for (int axis = 0; axis < 3; ++axis)
+            for (int s = 0; s < 3; ++s)
+                for (int t = 0; t < 3; ++t) {
+                    ks::Vec3 x = c.min;
+                    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+                    x[a1] += c.side * (0.2 + 0.3 * s);
+                    x[a2] += c.side * (0.2 + 0.3 * t);
+                    x[axis] += c.side;  // the far face
+                    ks::Vec3 e = ks::Vec3::Zero();
+                    e[axis] = 1e-9 * c.side;
+                    const ks::Vec3 y0 = x - e, y1 = x + e;
+                    if (!live_at(y1)) continue;
+                    jf = std::max(jf, std::abs(f(y1) - f(y0)));
+                    jg = std::max(jg, (f.gradient(y1) - f.gradient(y0)).norm());
+                }
+    }
+    return {jf, jg};
+}
+
+}  // namespace
+
+TEST_CASE("RBFOctreeField: interpolates the points (|f| <= 1e-6 diag) and the offsets (±d)") {
+    V pts, nrm;
+    sphere_points(4000, 1, pts, nrm);
+    const double diag = diagonal(pts);
+    for (const bool blend : {true, false}) {
+        CAPTURE(blend);
+        const auto res = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 60, .blend = blend});
+        REQUIRE(res.status == ks::Status::ok);
+        const auto& st = res.stats;
+        CHECK(st.points == 4000);
+        CHECK(st.merged_points == 0);
+        CHECK(st.live_cells > 8);
+        CHECK(st.live_cells + st.dead_cells == st.cells);
+        CHECK(st.max_points_per_cell <= 60 + 20);
+        CHECK(st.ill_conditioned_cells == 0);
+        double worst = 0;
+        for (const auto& p : pts) worst = std::max(worst, std::abs(res.field(p)));
+        CHECK(worst <= 1e-6 * diag);
+        // Offsets: centres other than the points carry ±d = ± their distance to the sphere.
+        const auto C = res.field.centres();
+        CHECK(C.size() == pts.size() + st.offset_points);
+        double worst_off = 0;
+        for (const auto& c : C) {
+            const double sd = (c - ks::Vec3(0.2, -0.1, 0.3)).norm() - 1.0;
+            worst_off = std::max(worst_off, std::abs(res.field(c) - sd));
+        }
+        CHECK(worst_off <= 1e-6 * diag);
+        // Between the samples: close to the sphere's signed distance, the right sign.
+        std::mt19937_64 rng(9);
+        std::normal_distribution<double> g;
+        double err = 0, sum = 0;
+        for (int i = 0; i < 2000; ++i) {
+            const ks::Vec3 v = ks::Vec3(g(rng), g(rng), g(rng)).normalized();
+            const ks::Vec3 x = ks::Vec3(0.2, -0.1, 0.3) + v;
+            err = std::max(err, std::abs(res.field(x)));
+            sum += std::abs(res.field(x));
+            CHECK(res.field(x + 0.05 * v) > 0);
+            CHECK(res.field(x - 0.05 * v) < 0);
+            // Gradient against central differences.
+            if (i % 50 == 0) {
+                const double h = 1e-6;
+                ks::Vec3 fd;
+                for (int k = 0; k < 3; ++k) {
+                    ks::Vec3 e = ks::Vec3::Zero();
+                    e[k] = h;
+                    fd[k] = (res.field(x + e) - res.field(x - e)) / (2 * h);
+                }
+                CHECK((res.field.gradient(x) - fd).norm() <= 1e-4);
+                CHECK(res.field.gradient(x).dot(v) > 0.9);
+            }
+        }
+        // 4000 random samples (spacing ~0.056): the RBF between them.
+        MESSAGE("sphere: max |f| " << err / diag << " diag, mean " << sum / 2000 / diag);
+        CHECK(err <= 1e-3 * diag);
+        CHECK(sum / 2000 <= 1e-4 * diag);
+    }
+}
+
+TEST_CASE("RBFOctreeField: the blend removes the seams of the paper's per-cell evaluation") {
+    V pts, nrm;
+    sphere_points(6000, 2, pts, nrm);
+    const auto res = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 50});
+    REQUIRE(res.status == ks::Status::ok);
+    REQUIRE(res.field.blended());
+    const auto single = res.field.with_blend(false);
+    const auto [bf, bg] = seam_jumps(res.field, 400);
+    const auto [sf, sg] = seam_jumps(single, 400);
+    MESSAGE("largest jump of f: single cell " << sf << ", blended " << bf << "; of the gradient: " << sg << ", "
+                                               << bg);
+    CHECK(sf > 0);
+    CHECK(bf * 10 <= sf);
+    CHECK(bg * 10 <= sg);
+    // Same fit: equal at the centres.
+    for (std::size_t i = 0; i < pts.size(); i += 97) CHECK(std::abs(single(pts[i]) - res.field(pts[i])) < 1e-9);
+}
+
+TEST_CASE("RBFOctreeField: duplicates and near-duplicates are merged, never a NaN") {
+    V pts, nrm;
+    sphere_points(2000, 3, pts, nrm);
+    const std::size_t n0 = pts.size();
+    for (std::size_t i = 0; i < n0; i += 4) {
+        pts.push_back(pts[i]);  // exact duplicate, opposite normal
+        nrm.push_back(-nrm[i]);
+        pts.push_back(pts[i] + ks::Vec3(1e-9, -1e-9, 0));  // near-duplicate
+        nrm.push_back(nrm[i]);
+    }
+    const auto res = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 40});
+    REQUIRE(res.status == ks::Status::ok);
+    CHECK(res.stats.merged_points == 1000);
+    CHECK(res.stats.ill_conditioned_cells == 0);
+    for (const auto& p : pts) {
+        CHECK(std::isfinite(res.field(p)));
+        CHECK(std::abs(res.field(p)) <= 1e-6);
+    }
+    // A degenerate cell (all its centres coplanar) still gives a finite field.
+    V flat, fn;
+    for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) {
+            flat.emplace_back(i, j, 0);
+            fn.emplace_back(0, 0, 1);
+        }
+    const auto r2 = ks::RBFOctreeField::build(ks::with_normals(flat, fn), {.n_max = 10});
+    REQUIRE(r2.status == ks::Status::ok);
+    for (double z : {-1.0, -0.1, 0.1, 1.0}) {
+        const double f = r2.field(ks::Vec3(2.5, 2.5, z));
+        CHECK(std::isfinite(f));
+        CHECK((f > 0) == (z > 0));
+    }
+}
+
+TEST_CASE("reconstruct_rbf_octree: sphere and torus -> closed meshes near the exact surface") {
+    {
+        V pts, nrm;
+        sphere_points(20000, 4, pts, nrm, ks::Vec3::Zero(), 1.0);
+        const auto r = ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), {.resolution = 96});
+        REQUIRE(r.status == ks::Status::ok);
+        const auto t = ks::topology_report(r.mesh);
+        CHECK(t.closed);
+        CHECK(t.manifold);
+        CHECK(t.components == 1);
+        CHECK(t.genus == 0);
+        CHECK(ks::signed_volume(r.mesh) > 0);
+        double worst = 0;
+        for (const auto& v : r.mesh.vertices) worst = std::max(worst, std::abs(v.norm() - 1));
+        CHECK(worst <= 1e-3);
+        CHECK(r.timings.size() == 4);
+        CHECK(r.isosurface.faces == r.mesh.faces.size());
+    }
+    {
+        // Torus R = 1, r = 0.4 (axis z), area-uniform samples.
+        V pts, nrm;
+        std::mt19937_64 rng(5);
+        std::uniform_real_distribution<double> u(0, 1);
+        while (pts.size() < 30000) {
+            const double th = 2 * M_PI * u(rng), ph = 2 * M_PI * u(rng);
+            if (u(rng) * 1.4 > 1.0 + 0.4 * std::cos(ph)) continue;
+            const ks::Vec3 c(std::cos(th), std::sin(th), 0);
+            const ks::Vec3 n = std::cos(ph) * c + std::sin(ph) * ks::Vec3(0, 0, 1);
+            pts.push_back(c + 0.4 * n);
+            nrm.push_back(n);
+        }
+        const auto r = ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), {.resolution = 128});
+        REQUIRE(r.status == ks::Status::ok);
+        const auto t = ks::topology_report(r.mesh);
+        CHECK(t.closed);
+        CHECK(t.components == 1);
+        CHECK(t.genus == 1);
+        double worst = 0;
+        for (const auto& v : r.mesh.vertices)
+            worst = std::max(worst, std::abs(std::hypot(std::hypot(v.x(), v.y()) - 1.0, v.z()) - 0.4));
+        CHECK(worst <= 1e-3);
+    }
+}
+
+TEST_CASE("reconstruct_rbf_octree: real mesh shipped — tests/data/bunny.off sampled with normals") {
+    ks::IndexedMesh ref;
+    ks::read_mesh(ks::test::test_data("bunny.off").string(), ref);
+    V nrm;
+    const V pts = kintsugi_test::sample_mesh(ref, 40000, 7, &nrm);
+    const auto r = ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), {.resolution = 128});
+    REQUIRE(r.status == ks::Status::ok);
+    check_closed_surface(r.mesh);
+    const auto d = ks::compare(r.mesh, ref, {.samples = 100000});
+    const auto ab = d.relative(d.a_to_b), ba = d.relative(d.b_to_a);
+    MESSAGE("bunny.off 40K samples: live " << r.stats.live_cells << "/" << r.stats.cells << ", mean "
+                                           << ab.mean * 100 << " % / " << ba.mean * 100 << " % diag, Hausdorff "
+                                           << ab.hausdorff * 100 << " %");
+    CHECK(ba.mean <= 0.0005);
+    CHECK(ab.mean <= 0.0005);
+    CHECK(ab.hausdorff <= 0.01);
+}
+
+TEST_CASE("reconstruct_rbf_octree: real data — the Stanford bunny points -> one closed mesh within 0.05 % diag") {
+    const auto file = ks::test::shared_data("stanford_bunny/reconstruction/bun_zipper_points_normals.xyz");
+    const auto ref_file = ks::test::shared_data("stanford_bunny/reconstruction/bun_zipper.ply");
+    KINTSUGI_REQUIRE_DATA(file);
+    KINTSUGI_REQUIRE_DATA(ref_file);
+    const ks::PointCloud cloud = ks::read_point_cloud(file);
+    REQUIRE(cloud.points.size() == 34834);
+    REQUIRE(cloud.normals.size() == 34834);
+    const ks::IndexedMesh ref = ks::read_mesh(ref_file);
+    const auto r = ks::reconstruct_rbf_octree(cloud, {.resolution = 160});
+    REQUIRE(r.status == ks::Status::ok);
+    check_closed_surface(r.mesh);
+    const auto d = ks::compare(r.mesh, ref, {.samples = 200000});
+    const auto ba = d.relative(d.b_to_a);
+    MESSAGE("bunny 34.8K: " << r.stats.cells << " cells, " << r.stats.live_cells << " live, max "
+                            << r.stats.max_points_per_cell << " mean " << r.stats.mean_points_per_cell
+                            << " per cell, ill " << r.stats.ill_conditioned_cells << "; reference to mesh mean "
+                            << ba.mean * 100 << " % diag, Hausdorff " << ba.hausdorff * 100 << " %; "
+                            << r.isosurface.lattice_evaluations << " lattice + " << r.isosurface.root_evaluations << " root evaluations, " << r.mesh.faces.size() << " faces");
+    for (const auto& s : r.timings) MESSAGE(s.stage << " " << s.seconds << " s");
+    CHECK(ba.mean <= 0.0005);
+}
+
+TEST_CASE_TEMPLATE("reconstruct_rbf_octree: any container gives the same mesh", Container, V,
+                   CGAL::Point_set_3<Epick::Point_3, Epick::Vector_3>, std::vector<Sample>) {
+    V pts, nrm;
+    sphere_points(3000, 6, pts, nrm);
+    const ks::RBFOctreeParams prm{.n_max = 80, .resolution = 48};
+    const auto ref = ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), prm);
+    REQUIRE(ref.status == ks::Status::ok);
+    Container c;
+    ks::IndexedMesh out;
+    ks::RBFReconstructResult r;
+    if constexpr (std::is_same_v<Container, V>) {
+        // Eigen vectors in, CGAL::Surface_mesh out.
+        c = pts;
+        CGAL::Surface_mesh<Epick::Point_3> sm;
+        r = ks::reconstruct_rbf_octree(ks::with_normals(c, nrm), sm, prm);
+        REQUIRE(r.status == ks::Status::ok);
+        CHECK(sm.number_of_faces() == ref.mesh.faces.size());
+        CHECK(sm.number_of_vertices() == ref.mesh.vertices.size());
+    } else if constexpr (std::is_same_v<Container, std::vector<Sample>>) {
+        for (std::size_t i = 0; i < pts.size(); ++i)
+            c.push_back(Sample{{float(pts[i].x()), float(pts[i].y()), float(pts[i].z())},
+                               {float(nrm[i].x()), float(nrm[i].y()), float(nrm[i].z())}});
+        r = ks::reconstruct_rbf_octree(ks::project_points(c, &Sample::xyz, &Sample::normal), out, prm);
+        REQUIRE(r.status == ks::Status::ok);
+        // float input: the same sphere within float rounding, the same topology.
+        const auto t = ks::topology_report(out);
+        CHECK(t.closed);
+        CHECK(t.genus == 0);
+        for (const auto& v : out.vertices) CHECK(std::abs((v - ks::Vec3(0.2, -0.1, 0.3)).norm() - 1) < 1e-2);
+    } else {
+        c.add_normal_map();
+        for (std::size_t i = 0; i < pts.size(); ++i)
+            c.insert(Epick::Point_3(pts[i].x(), pts[i].y(), pts[i].z()),
+                     Epick::Vector_3(nrm[i].x(), nrm[i].y(), nrm[i].z()));
+        r = ks::reconstruct_rbf_octree(c, out, prm);
+        REQUIRE(r.status == ks::Status::ok);
+        CHECK(out.faces == ref.mesh.faces);
+        CHECK(out.vertices == ref.mesh.vertices);
+    }
+}
+
+TEST_CASE("RBFOctreeField: bit-identical with 1 and 2 threads") {
+    V pts, nrm;
+    sphere_points(5000, 8, pts, nrm);
+    std::vector<ks::RBFReconstructResult> runs;
+    for (const int threads : {1, 2}) {
+        const ks::ThreadLimit limit(threads);
+        runs.push_back(ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), {.n_max = 50, .resolution = 40}));
+        REQUIRE(runs.back().status == ks::Status::ok);
+    }
+    const auto& a = runs[0].mesh;
+    const auto& b = runs[1].mesh;
+    CHECK(a.faces == b.faces);
+    REQUIRE(a.vertices.size() == b.vertices.size());
+    CHECK(std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size() * sizeof(ks::Vec3)) == 0);
+}
+
+TEST_CASE("RBFOctreeField: coordinates of any magnitude give the same field up to scale") {
+    V pts, nrm;
+    sphere_points(2000, 10, pts, nrm);
+    const auto ref = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 60});
+    for (const double s : {0x1p-60, 0x1p70}) {
+        V q = pts;
+        for (auto& p : q) p *= s;
+        const auto r = ks::RBFOctreeField::build(ks::with_normals(q, nrm), {.n_max = 60});
+        REQUIRE(r.status == ks::Status::ok);
+        CHECK(r.stats.cells == ref.stats.cells);
+        const ks::Vec3 x(0.5, 0.4, -0.3);
+        CHECK(r.field(x * s) / s == doctest::Approx(ref.field(x)).epsilon(1e-9));
+    }
+}
+
+TEST_CASE("RBFOctreeField: bad input throws invalid_input naming the fix, input untouched") {
+    V pts, nrm;
+    sphere_points(200, 11, pts, nrm);
+    const V pts0 = pts, nrm0 = nrm;
+    auto expect = [&](const V& p, const V& n, const ks::RBFOctreeParams& prm, const std::string& what) {
+        CAPTURE(what);
+        try {
+            (void)ks::RBFOctreeField::build(ks::with_normals(p, n), prm);
+            FAIL("no exception");
+        } catch (const ks::invalid_input& e) {
+            const std::string msg = e.what();
+            CHECK(msg.find("kintsugi::RBFOctreeField::build") != std::string::npos);
+            CHECK(msg.find(what) != std::string::npos);
+        }
+    };
+    expect(pts, nrm, {.n_max = 9}, "n_max = 9 is below 10");
+    expect(pts, nrm, {.overlap = 0.9}, "overlap = 0.9 must be >= 1");
+    expect(pts, nrm, {.activity = 0.5}, "activity = 0.5 must be >= 1");
+    expect(pts, nrm, {.root_size = 0}, "root_size");
+    expect(pts, nrm, {.offset_scale = -1}, "offset_scale");
+    expect(pts, nrm, {.smoothing = -1}, "smoothing");
+    expect(pts, nrm, {.merge_distance = std::nan("")}, "merge_distance");
+    expect(V(pts.begin(), pts.begin() + 3), V(nrm.begin(), nrm.begin() + 3), {}, "at least 4 points");
+    expect(pts, V{}, {}, "estimate oriented normals");
+    V bad = pts;
+    bad[17].y() = std::nan("");
+    expect(bad, nrm, {}, "point 17 has a NaN");
+    V badn = nrm;
+    badn[5] = ks::Vec3::Zero();
+    expect(pts, badn, {}, "the normal of point 5 is zero");
+    CHECK(pts == pts0);
+    CHECK(nrm == nrm0);
+    // The CLI-facing function names itself and checks the resolution.
+    CHECK_THROWS_WITH_AS(ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), {.resolution = 4}),
+                         doctest::Contains("kintsugi::reconstruct_rbf_octree: resolution = 4"), ks::invalid_input);
+    CHECK_THROWS_WITH_AS(ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), {.n_max = 3}),
+                         doctest::Contains("n_max = 3 is below 10"), ks::invalid_input);
+}
+
+TEST_CASE("reconstruct_rbf_octree: cancellation at every stage leaves the output untouched") {
+    V pts, nrm;
+    sphere_points(4000, 12, pts, nrm);
+    for (const char* stage : {"rbf_offsets", "rbf_octree", "rbf_solve", "rbf_polygonise"}) {
+        CAPTURE(stage);
+        ks::RBFOctreeParams prm{.n_max = 50, .resolution = 40};
+        bool seen = false;
+        prm.control.progress = [&](const ks::ProgressEvent& e) {
+            seen = seen || e.stage == stage;
+            return !seen;
+        };
+        ks::IndexedMesh out;
+        out.vertices.push_back(ks::Vec3(1, 2, 3));
+        const auto r = ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), out, prm);
+        CHECK(seen);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(out.vertices.size() == 1);
+        CHECK(out.faces.empty());
+    }
+    // A stop requested on the token in the middle of the solves.
+    std::stop_source stopper;
+    ks::RBFOctreeParams mid{.n_max = 50};
+    mid.control = {.progress = [&stopper](const ks::ProgressEvent& e) {
+                       if (e.stage == std::string_view("rbf_solve") && e.fraction > 0.5) stopper.request_stop();
+                       return true;
+                   },
+                   .stop = stopper.get_token()};
+    const auto stopped = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), mid);
+    CHECK(stopper.stop_requested());
+    CHECK(stopped.status == ks::Status::cancelled);
+    CHECK(stopped.field.empty());
+    CHECK(std::isnan(stopped.field(pts[0])));
+    // Progress never goes back, ends at 1, and is reported a bounded number of times.
+    std::vector<double> seen_fractions;
+    ks::RBFOctreeParams ok{.n_max = 50, .resolution = 40};
+    ok.control.progress = [&seen_fractions](const ks::ProgressEvent& e) {
+        seen_fractions.push_back(e.fraction);
+        return true;
+    };
+    CHECK(ks::reconstruct_rbf_octree(ks::with_normals(pts, nrm), ok).status == ks::Status::ok);
+    CHECK(std::is_sorted(seen_fractions.begin(), seen_fractions.end()));
+    CHECK(seen_fractions.back() == 1.0);
+    CHECK(seen_fractions.size() <= 220);
+}
