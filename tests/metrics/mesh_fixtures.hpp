@@ -89,6 +89,19 @@ inline IndexedMesh grid(int nx, int ny, const std::set<int>& skip = {}) {
     return g;
 }
 
+/// A disk of n long thin faces around one vertex (a fan): the centre (vertex 0) and n
+/// rim vertices on the circle of radius r in the plane z = 0, faces (0, i, i + 1).
+inline IndexedMesh fan(int n, double r = 1.0) {
+    IndexedMesh m;
+    m.vertices.push_back(Vec3::Zero());
+    for (int i = 0; i < n; ++i) {
+        const double a = 2 * std::numbers::pi * i / n;
+        m.vertices.push_back(Vec3(r * std::cos(a), r * std::sin(a), 0));
+    }
+    for (int i = 0; i < n; ++i) m.faces.push_back({0, ks::Index(1 + i), ks::Index(1 + (i + 1) % n)});
+    return m;
+}
+
 /// UV sphere of radius r around c with `stacks` x `slices` cells, outward. Every
 /// vertex lies exactly on the sphere.
 inline IndexedMesh uv_sphere(int stacks, int slices, double r = 1.0, const Vec3& c = Vec3::Zero()) {

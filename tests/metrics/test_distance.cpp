@@ -19,6 +19,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <stop_token>
 
 namespace ks = kintsugi;
@@ -142,6 +143,39 @@ TEST_CASE("compare: sphere tessellations against analytic bounds") {
         CHECK(r.a_to_b.mean > 0.1 * s_coarse);
         CHECK(r.a_to_b.mean < 0.6 * s_coarse);
         CHECK(r.normal_consistency > 0.98);
+    }
+}
+
+TEST_CASE("compare: a fan of 20,000 slivers around one vertex, at known distance") {
+    // Every face is a sliver 1 long and 3e-4 wide with vertex 0 in common, the case
+    // where axis-aligned boxes overlap (its cost is measured in bench_metrics).
+    const IndexedMesh fan = fixtures::fan(20000);
+    const IndexedMesh lifted = translated(fan, Vec3(0, 0, 0.003));
+    const auto r = ks::compare(lifted, fan, {.samples = 20000});
+    CHECK(r.diagonal == doctest::Approx(std::sqrt(8.0)));
+    for (const auto* d : {&r.a_to_b, &r.b_to_a}) {
+        CHECK(d->mean == doctest::Approx(0.003).epsilon(1e-9));
+        CHECK(d->rms == doctest::Approx(0.003).epsilon(1e-9));
+        CHECK(d->p99 == doctest::Approx(0.003).epsilon(1e-9));
+        CHECK(d->hausdorff == doctest::Approx(0.003).epsilon(1e-9));
+        CHECK(d->fscore_part == 1.0);
+    }
+    CHECK(r.normal_consistency == doctest::Approx(1.0));
+    // Points around the fan, off its plane and beyond its rim: the distance in closed form
+    // from the radius rho and height z: sqrt(max(rho - rim, 0)^2 + z^2), where the rim
+    // between two rim vertices lies at cos(pi / n) of the radius.
+    std::vector<Eigen::Vector3d> pts;
+    for (int i = 0; i < 2000; ++i) {
+        const double rho = 1.5 * (i % 100) / 99.0, a = 2.399963229728653 * i, z = 0.01 * ((i * 7) % 11 - 5);
+        pts.emplace_back(rho * std::cos(a), rho * std::sin(a), z);
+    }
+    const auto d = ks::distances_to_mesh(pts, fan);
+    const double inner = std::cos(std::numbers::pi / 20000);
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        const double rho = pts[i].head<2>().norm(), z = pts[i].z();
+        const double lo = std::hypot(std::max(rho - 1.0, 0.0), z), hi = std::hypot(std::max(rho - inner, 0.0), z);
+        CHECK(d[i] >= lo - 1e-12);
+        CHECK(d[i] <= hi + 1e-12);
     }
 }
 

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <random>
 #include <string>
@@ -211,6 +212,69 @@ TEST_CASE("TriangleIndex ray hits equal brute force (first hit and all hits)") {
                                 << " hit more than once; all equal to brute force");
         CHECK(compared > 1900);
         CHECK(hit > 500);
+    }
+}
+
+TEST_CASE("TriangleIndex on a fan of slivers around one vertex equals brute force") {
+    // 3,000 faces of aspect ratio ~500 sharing vertex 0 (their axis-aligned boxes all
+    // overlap near it), flat and with every vertex moved by noise (slivers that cross).
+    ks::IndexedMesh noisy = fixtures::fan(3000);
+    std::mt19937 rng(7);
+    std::normal_distribution<double> g(0, 0.002);
+    for (auto& v : noisy.vertices) v += ks::Vec3(g(rng), g(rng), g(rng));
+    for (const ks::IndexedMesh& m : {fixtures::fan(3000), noisy}) {
+        const ks::TriangleIndex index(m);
+        REQUIRE(index.size() == 3000);
+        std::vector<ks::Vec3> q(3000);  // around the disk, on both sides and past its rim
+        std::uniform_real_distribution<double> u(0, 1);
+        for (auto& p : q) {
+            const double rho = 1.2 * std::sqrt(u(rng)), a = 2 * std::numbers::pi * u(rng);
+            p = ks::Vec3(rho * std::cos(a), rho * std::sin(a), 0.02 * (u(rng) - 0.5));
+        }
+        const auto batch = index.closest_points(q);
+        std::size_t unique = 0;
+        double worst = 0;
+        for (std::size_t i = 0; i < q.size(); ++i) {
+            const Brute b = brute_closest(m, q[i]);
+            // The same closest point on a triangle as the index computes (CGAL's), over every face.
+            double exact = std::numeric_limits<double>::infinity();
+            using K = CGAL::Simple_cartesian<double>;
+            const K::Point_3 p(q[i].x(), q[i].y(), q[i].z());
+            for (const auto& t : m.faces) {
+                auto P = [&](ks::Index v) { return K::Point_3(m.vertices[v].x(), m.vertices[v].y(), m.vertices[v].z()); };
+                const K::Point_3 c = K::Construct_projected_point_3()(K::Triangle_3(P(t[0]), P(t[1]), P(t[2])), p);
+                exact = std::min(exact, (ks::Vec3(c.x(), c.y(), c.z()) - q[i]).norm());
+            }
+            REQUIRE(batch[i].distance == exact);
+            worst = std::max(worst, std::abs(batch[i].distance - b.best));
+            REQUIRE(std::abs(batch[i].distance - b.best) <= 1e-10);
+            REQUIRE(index.closest(q[i]).distance == batch[i].distance);
+            if (b.second - b.best > 1e-12) {
+                CHECK(batch[i].face == b.face);
+                ++unique;
+            }
+        }
+        CHECK(unique > 500);  // the others lie on a shared edge (the noisy fan is pleated)
+        MESSAGE("fan of 3,000 faces: max |distance - brute force| " << worst);
+    }
+}
+
+TEST_CASE("TriangleIndex ray queries from many threads at once (the ray tree is built on first use)") {
+    const ks::IndexedMesh m = fixtures::load(fixtures::test_data("eight.off"));
+    const ks::TriangleIndex index(m);
+    ks::BoundingBox box;
+    for (const auto& v : m.vertices) box.extend(v);
+    const ks::Vec3 c = box.min + 0.5 * box.extent();
+    std::vector<std::size_t> hits(64);
+    ks::parallel_for(0, hits.size(), [&](std::size_t i) {
+        const double a = 0.1 * static_cast<double>(i);
+        hits[i] = index.all_hits(c - ks::Vec3(std::cos(a), std::sin(a), 0.3) * box.extent().norm(),
+                                 ks::Vec3(std::cos(a), std::sin(a), 0.3)).size();
+    }, 1);
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+        const double a = 0.1 * static_cast<double>(i);
+        const ks::Vec3 d(std::cos(a), std::sin(a), 0.3);
+        CHECK(hits[i] == brute_rays(m, c - d * box.extent().norm(), d).size());
     }
 }
 
