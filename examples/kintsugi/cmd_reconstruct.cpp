@@ -4,16 +4,23 @@
 // `kintsugi reconstruct IN OUT --method pu-graphcut [--max-level 8] [--epsilon E]
 // [--k 10] [--labeling graphcut|sign] [--inward-normals] [--json]`: a closed,
 // outward-oriented manifold surface from (possibly outlier-ridden) points.
+// `--method rbf [--n-max 250] [--overlap 1.35] [--activity 1.05] [--smoothing L]
+// [--resolution N] [--no-blend]`: the octree triharmonic RBF surface (clean points).
 #include "common.hpp"
 
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/io/write.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/normals/estimate_normals.hpp>
+#include <kintsugi/rbf/rbf_octree.hpp>
 #include <kintsugi/reconstruct/pu_graphcut.hpp>
 
+#include <cmath>
+#include <cstdio>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -23,7 +30,84 @@ struct ReconstructOptions {
     kintsugi::PUGraphcutParams params;  // the library's defaults
     std::string labeling = params.labeling == kintsugi::Labeling::sign ? "sign" : "graphcut";
     bool inward = params.normals == kintsugi::NormalConvention::inward;
+    kintsugi::RBFOctreeParams rbf;  // the library's defaults
+    /// --smoothing: Taubin iterations for pu-graphcut, λ for rbf (each method's default when not given)
+    double smoothing = static_cast<double>(params.smoothing_iterations);
+    CLI::Option* smoothing_option = nullptr;
+    bool no_blend = !rbf.blend;
+    std::vector<CLI::Option*> pu_only, rbf_only;  ///< refused with the other method
 };
+
+std::string real_text(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return buf;
+}
+
+/// The surface's topology, then the mesh written to the output.
+kintsugi::TopologyReport write_surface(kcli::Context& ctx, const ReconstructOptions& o,
+                                       const kintsugi::IndexedMesh& m) {
+    const kintsugi::TopologyReport rep = kintsugi::topology_report(m);
+    kcli::Stopwatch sw;
+    ctx.check_interrupted();
+    ctx.doing("writing " + o.output);
+    kintsugi::write_mesh(o.output, m, ctx.write_options());
+    ctx.add_timing("write", sw.seconds());
+    return rep;
+}
+
+/// --method rbf: the fit, its polygonisation, the output, the JSON and the summary line.
+void run_rbf(const ReconstructOptions& o, kcli::Context& ctx, kintsugi::PointCloud& cloud, bool estimated) {
+    kintsugi::RBFOctreeParams p = o.rbf;
+    if (o.smoothing_option->count() > 0) p.smoothing = o.smoothing;
+    p.blend = !o.no_blend;
+    p.control = ctx.control("reconstruct");
+    if (o.inward)
+        for (kintsugi::Vec3& n : cloud.normals) n = -n;
+    ctx.doing("reconstructing an RBF surface from the " + kcli::grouped(cloud.points.size()) + " points of " +
+              o.input + " (--n-max " + std::to_string(p.n_max) + ", --resolution " + std::to_string(p.resolution) +
+              ")");
+    kintsugi::RBFReconstructResult r = kintsugi::reconstruct_rbf_octree(cloud, p);
+    ctx.end_progress();
+    if (r.status == kintsugi::Status::cancelled) throw kcli::interrupted();
+    ctx.add_timings(r.timings);
+    const kintsugi::TopologyReport rep = write_surface(ctx, o, r.mesh);
+    const auto& st = r.stats;
+    auto& j = ctx.json();
+    const std::pair<const char*, kcli::Json> top[] = {
+        {"command", "reconstruct"}, {"input", o.input}, {"output", o.output}};
+    for (const auto& [key, value] : top) j[key] = value;
+    const std::pair<const char*, kcli::Json> parameters[] = {
+        {"method", o.method},        {"n_max", p.n_max},           {"overlap", p.overlap},
+        {"activity", p.activity},    {"smoothing", p.smoothing},   {"resolution", p.resolution},
+        {"blend", p.blend},          {"inward_normals", o.inward}};
+    for (const auto& [key, value] : parameters) j["parameters"][key] = value;
+    const std::pair<const char*, kcli::Json> counts[] = {
+        {"normals_estimated", estimated},
+        {"points", st.points},
+        {"merged_points", st.merged_points},
+        {"offset_points", st.offset_points},
+        {"cells", st.cells},
+        {"live_cells", st.live_cells},
+        {"dead_cells", st.dead_cells},
+        {"max_points_per_cell", st.max_points_per_cell},
+        {"mean_points_per_cell", st.mean_points_per_cell},
+        {"ill_conditioned_cells", st.ill_conditioned_cells},
+        {"field_evaluations", r.isosurface.field_evaluations},
+        {"vertices", rep.vertices},
+        {"faces", rep.faces},
+        {"components", rep.components},
+        {"genus", rep.genus},
+        {"closed", rep.closed},
+        {"manifold", rep.manifold}};
+    for (const auto& [key, value] : counts) j[key] = value;
+    ctx.info("reconstructed " + std::to_string(st.points) + " points (" + std::to_string(st.live_cells) +
+             " live cells of " + std::to_string(st.cells) + ", at most " + std::to_string(st.max_points_per_cell) +
+             " centres each, " + std::to_string(st.ill_conditioned_cells) + " ill-conditioned) -> " +
+             std::to_string(rep.vertices) + " vertices, " + std::to_string(rep.faces) + " faces, " +
+             std::to_string(rep.components) + " component(s), genus " + std::to_string(rep.genus) +
+             (rep.closed && rep.manifold ? ", closed manifold" : "") + " -> " + o.output);
+}
 
 kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     auto o = std::make_shared<ReconstructOptions>();
@@ -32,7 +116,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("output", o->output, "Mesh to write (PLY, OFF, OBJ)")->required();
     cmd.add_option("--method", o->method, "Reconstruction method")
         ->capture_default_str()
-        ->check(CLI::IsMember({"pu-graphcut"}));
+        ->check(CLI::IsMember({"pu-graphcut", "rbf"}));
     auto& p = o->params;
     cmd.add_option("--max-level", p.max_level, "Octree depth")->capture_default_str()->check(kcli::count(1, 12));
     cmd.add_option("--epsilon", p.epsilon, "PU error tolerance, fraction of the longest bounding-box side")
@@ -45,14 +129,39 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                    "Regular-triangulation weights (s r)^2: 1 is the paper (small supports hidden), 0 keeps all")
         ->capture_default_str()
         ->check(kcli::real(0.0, 1.0));
-    cmd.add_option("--smoothing", p.smoothing_iterations, "Selective Taubin iterations (0 = none)")
-        ->capture_default_str()
-        ->check(kcli::count(0, 10000));
+    o->smoothing_option =
+        cmd.add_option("--smoothing", o->smoothing,
+                       "pu-graphcut: selective Taubin iterations (0 = none); rbf: Carr's smoothing lambda (default " +
+                           real_text(o->rbf.smoothing) + ", 0 interpolates)")
+            ->capture_default_str()
+            ->check(kcli::real(0.0, 1e6));
     cmd.add_option("--labeling", o->labeling, "graphcut, or sign (the PU field's sign, for comparison)")
         ->capture_default_str()
         ->check(CLI::IsMember({"graphcut", "sign"}));
     cmd.add_flag("--inward-normals", o->inward, "Input normals point into the object (the paper's convention)");
+    for (const char* name : {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--labeling"})
+        o->pu_only.push_back(cmd.get_option(name));
+    auto& r = o->rbf;
+    const auto rbf_option = [&cmd, &o](const char* name, auto& value, const char* help, const CLI::Validator& check) {
+        o->rbf_only.push_back(
+            cmd.add_option(name, value, std::string("rbf: ") + help)->capture_default_str()->check(check));
+    };
+    rbf_option("--n-max", r.n_max, "a cell splits while more centres are assigned to it (>= 10)",
+               kcli::count(10, 100000));
+    rbf_option("--overlap", r.overlap, "overlap factor alpha of the cells (>= 1; paper 1.3-1.4)",
+               kcli::real(1.0, 4.0));
+    rbf_option("--activity", r.activity, "activity factor beta of dead cells (>= 1; paper 1.05)",
+               kcli::real(1.0, 4.0));
+    rbf_option("--resolution", r.resolution, "polygonisation cubes along the longest side", kcli::count(8, 4096));
+    o->rbf_only.push_back(
+        cmd.add_flag("--no-blend", o->no_blend, "rbf: the paper's single-cell evaluation (seams) instead of the blend"));
     return [o, &ctx] {
+        for (const CLI::Option* opt : o->method == "rbf" ? o->pu_only : o->rbf_only)
+            if (opt->count() > 0)
+                throw kcli::usage_error(opt->get_name() + " does not apply to --method " + o->method);
+        if (o->method == "pu-graphcut" && (o->smoothing != std::floor(o->smoothing) || o->smoothing > 10000))
+            throw kcli::usage_error("--smoothing " + real_text(o->smoothing) +
+                                    ": pu-graphcut takes a whole number of Taubin iterations in [0, 10000]");
         ctx.check_output(o->output, kintsugi::OutputKind::mesh);
         kcli::Stopwatch sw;
         kintsugi::ReadInfo info;
@@ -74,7 +183,12 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             estimated = true;
         }
 
+        if (o->method == "rbf") {
+            run_rbf(*o, ctx, cloud, estimated);
+            return;
+        }
         kintsugi::PUGraphcutParams p = o->params;
+        p.smoothing_iterations = static_cast<std::size_t>(o->smoothing);
         p.seed = ctx.common.seed;
         p.normals = o->inward ? kintsugi::NormalConvention::inward : kintsugi::NormalConvention::outward;
         p.labeling = o->labeling == "sign" ? kintsugi::Labeling::sign : kintsugi::Labeling::graphcut;
@@ -89,12 +203,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             ctx.notice(std::to_string(r.far_points) + " of the " + std::to_string(r.points) +
                        " points lie apart from the rest in groups too small to be an object; they were left out");
 
-        const kintsugi::TopologyReport rep = kintsugi::topology_report(r.mesh);
-        sw = kcli::Stopwatch();
-        ctx.check_interrupted();
-        ctx.doing("writing " + o->output);
-        kintsugi::write_mesh(o->output, r.mesh, ctx.write_options());
-        ctx.add_timing("write", sw.seconds());
+        const kintsugi::TopologyReport rep = write_surface(ctx, *o, r.mesh);
 
         auto& j = ctx.json();
         j["command"] = "reconstruct";
@@ -142,5 +251,6 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
 
 }  // namespace
 
-KINTSUGI_REGISTER_COMMAND(reconstruct, "Closed surface from oriented points (PU + graph cut), robust to outliers",
+KINTSUGI_REGISTER_COMMAND(reconstruct,
+                          "Closed surface from oriented points: PU + graph cut (robust to outliers) or octree RBF",
                           setup)

@@ -87,6 +87,13 @@ json_check "two objects, two surfaces" "j['far_points']==0 and j['parts']==2 and
 awk '{printf "%.17g %.17g %.17g %s %s %s\n", $1*1e200, $2*1e200, $3*1e200, $4, $5, $6}' "$work/kitten.xyz" > "$work/kitten_huge.xyz"
 expect 0 "reconstruct at 1e200" -- "$bin" reconstruct "$work/kitten_huge.xyz" "$work/huge.ply" --max-level 6 --json
 json_check "1e200: one closed surface" "j['components']==1 and j['closed'] and j['vertices']>500"
+# ---- reconstruct --method rbf: defaults from RBFOctreeParams, one closed surface, the paper's evaluation
+expect 0 "reconstruct --method rbf" -- "$bin" reconstruct "$work/kitten.xyz" "$work/rbf.ply" --method rbf --resolution 64 --json
+json_check "rbf: closed surface and counts" "j['parameters']['method']=='rbf' and j['parameters']['n_max']==250 and abs(j['parameters']['overlap']-1.35)<1e-12 and abs(j['parameters']['activity']-1.05)<1e-12 and j['parameters']['smoothing']==0 and j['parameters']['blend'] is True and j['points']==5210 and j['live_cells']>0 and j['live_cells']+j['dead_cells']==j['cells'] and j['max_points_per_cell']<=270 and j['ill_conditioned_cells']==0 and j['components']==1 and j['closed'] and j['manifold'] and j['vertices']>1000 and 'rbf_solve' in j['timings']"
+expect 0 "reconstruct --method rbf --no-blend --smoothing" -- "$bin" reconstruct "$work/kitten.xyz" "$work/rbf2.ply" --method rbf --resolution 48 --no-blend --smoothing 0.01 --n-max 100 --json
+json_check "rbf: options reach the fit" "j['parameters']['blend'] is False and j['parameters']['smoothing']==0.01 and j['parameters']['n_max']==100 and j['max_points_per_cell']<=120 and j['closed']"
+expect 0 "reconstruct --method rbf, normals estimated" -- "$bin" reconstruct "$mesh" "$work/rbf3.ply" --method rbf --resolution 32 --json
+json_check "rbf: estimated normals" "j['normals_estimated'] is True and j['points']==1839 and j['faces']>0"
 
 # ---- upsample: surfels with a radius property; a filled set needs nothing more; bad radius
 expect 0 "upsample --json" -- "$bin" upsample "$cloud" "$work/surfels.ply" --radius-rel 0.01 --json
@@ -120,6 +127,14 @@ usage "reconstruct --k nan" "--k" -- "$bin" reconstruct "$missing" "$work/o.ply"
 usage "reconstruct --k inf" "--k" -- "$bin" reconstruct "$missing" "$work/o.ply" --k inf
 usage "reconstruct --smoothing -1" "--smoothing" -- "$bin" reconstruct "$missing" "$work/o.ply" --smoothing -1
 usage "reconstruct --max-level 1.5" "--max-level" -- "$bin" reconstruct "$missing" "$work/o.ply" --max-level 1.5
+usage "reconstruct rbf --n-max 9" "--n-max" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --n-max 9
+usage "reconstruct rbf --overlap 0.9" "--overlap" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --overlap 0.9
+usage "reconstruct rbf --activity nan" "--activity" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --activity nan
+usage "reconstruct rbf --resolution 4" "--resolution" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --resolution 4
+usage "reconstruct rbf --max-level" "--max-level" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --max-level 6
+stderr_has "option of the other method" "does not apply to --method rbf"
+usage "reconstruct pu-graphcut --n-max" "--n-max" -- "$bin" reconstruct "$missing" "$work/o.ply" --n-max 100
+usage "reconstruct pu-graphcut --smoothing 1.5" "--smoothing" -- "$bin" reconstruct "$missing" "$work/o.ply" --smoothing 1.5
 usage "perturb --noise nan" "--noise" -- "$bin" perturb "$cloud" "$work/o.ply" --noise nan
 usage "perturb --outliers nan" "--outliers" -- "$bin" perturb "$cloud" "$work/o.ply" --outliers nan
 usage "perturb --seed -1" "--seed" -- "$bin" perturb "$cloud" "$work/o.ply" --seed -1
@@ -136,6 +151,7 @@ json_check "seed reported unwrapped" "j['parameters']['seed'] == 184467440737095
 # The help shows the library's defaults.
 expect 0 "reconstruct --help" -- "$bin" reconstruct --help
 if grep -Eq -- "--smoothing [^=]*=30( |$)" "$work/out" && grep -Eq -- "--epsilon [^=]*=0.004( |$)" "$work/out"; then ok; else bad "reconstruct help defaults: $(grep -- '--smoothing\|--epsilon' "$work/out")"; fi
+if grep -Eq -- "--n-max [^=]*=250( |$)" "$work/out" && grep -Eq -- "--overlap [^=]*=1.35( |$)" "$work/out" && grep -Eq -- "--resolution [^=]*=256( |$)" "$work/out"; then ok; else bad "reconstruct rbf help defaults: $(grep -- '--n-max\|--overlap\|--resolution' "$work/out")"; fi
 
 # ---- outputs are checked before any input is read (the error names the output)
 expect 1 "unwritable output checked first" -- "$bin" normals "$missing" "/nonexistent-dir/x.ply"
