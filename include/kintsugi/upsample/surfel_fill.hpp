@@ -157,7 +157,9 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         progress.stage("fill level " + std::to_string(level), 0.1 + 0.9 * double(level) / double(cfg.levels),
                        0.1 + 0.9 * double(level + 1) / double(cfg.levels));
         const Scalar rmax = rmax0 * scale;
-        UniformGrid grid(P, 2 * rmax);
+        // Cells as wide as the widest query (r_i + r_new + r_max): one query visits the
+        // 3x3x3 cells around its own.
+        UniformGrid grid(P, 3 * rmax);
         std::vector<Index> queue(P.size());
         std::iota(queue.begin(), queue.end(), Index{0});
         bool verified = false;
