@@ -232,7 +232,7 @@ TEST_CASE("a face with fewer than 3 vertices is reported as such, not as a trunc
     for (int n : {0, 1, 2}) {
         CAPTURE(n);
         std::string idx = std::to_string(n);
-        for (int k = 0; k < n; ++k) idx += " " + std::to_string(k);
+        for (int k = 0; k < n; ++k) idx.append(" ").append(std::to_string(k));
         const std::string what = "face 1 (counting from 0) on line ";
         const std::string has = " has " + std::to_string(n) + " vertices; a face needs at least 3";
         // Several short faces: the header's face count exceeds what full triangles would need.
@@ -242,7 +242,7 @@ TEST_CASE("a face with fewer than 3 vertices is reported as such, not as a trunc
                             tri + "3 0 1 2\n" + idx + "\n" + idx + "\n",
                what + "14" + has);
         std::string objf = "f";
-        for (int k = 1; k <= n; ++k) objf += " " + std::to_string(k);
+        for (int k = 1; k <= n; ++k) objf.append(" ").append(std::to_string(k));
         expect("c.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n" + objf + "\n", what + "5" + has);
         // Binary: 3 float vertices, a triangle, then two faces of n vertices.
         std::string body;
@@ -290,6 +290,8 @@ TEST_CASE("messages and ReadInfo escape raw bytes and control characters of the 
 
     const std::string extension = error_of(dir, "e.p\x01ly", "ply\n");
     CHECK(extension.find("unsupported file extension '.p\\x01ly'") != std::string::npos);
+    CHECK(extension.find("e.p\\x01ly: ") != std::string::npos);  // the file name too
+    CHECK(all_printable(extension));
 
     // Statements and properties that are ignored are listed escaped.
     ks::ReadInfo info;
@@ -306,7 +308,7 @@ TEST_CASE("messages and ReadInfo escape raw bytes and control characters of the 
 TEST_CASE("ignored statements are listed up to 64, then '...'; many names cost linear time") {
     TempDir dir;
     std::string content = "v 0 0 0\n";
-    for (int i = 0; i < 200000; ++i) content += "k" + std::to_string(i) + " 1\n";
+    for (int i = 0; i < 200000; ++i) content.append("k").append(std::to_string(i)).append(" 1\n");
     ks::ReadInfo info;
     (void)read_text(dir, "many.obj", content, &info);
     REQUIRE(info.ignored_properties.size() == 65);

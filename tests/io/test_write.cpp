@@ -253,6 +253,44 @@ TEST_CASE("write_polylines: PLY vertex + edge elements, OBJ lines") {
     check_io_error([&] { ks::write_polylines(dir / "loop.xyz", pts, edges); }, dir / "loop.xyz", "unsupported extension");
 }
 
+TEST_CASE("io_error messages escape the file name; path() keeps it as given") {
+    TempDir dir;
+    const ks::IndexedMesh mesh = ks::read_mesh(data("bun_zipper_res4.ply"));
+    const std::string odd = "a\nb\tc\r\x1B[31m\x01\xFF";  // a newline, a tab, a terminal escape, raw bytes
+    const std::string shown = "a\\nb\\tc\\r\\x1B[31m\\x01\\xFF";
+    auto message_of = [](auto&& fn, const fs::path& path) {
+        try {
+            fn();
+        } catch (const ks::io_error& e) {
+            CHECK(e.path() == path.string());
+            return std::string(e.what());
+        }
+        return std::string("(nothing thrown)");
+    };
+    auto printable = [](const std::string& s) {
+        return std::all_of(s.begin(), s.end(), [](char c) { return c >= 0x20 && c < 0x7F; });
+    };
+    const std::vector<std::pair<fs::path, std::string>> cases = {
+        {dir / (odd + ".ply"), "file does not exist"},                          // reading: the file
+        {dir / (odd + ".off"), "is not a number"},                              // reading: its content
+        {dir / odd / "m.ply", "' does not exist"},                              // writing: the directory
+        {dir / ("m.p" + odd), "unsupported extension '.p" + shown + "' for"},  // writing: the extension
+    };
+    write_file(dir / (odd + ".off"), "OFF\n1 0 0\nx 0 0\n");
+    for (std::size_t i = 0; i < cases.size(); ++i) {
+        const fs::path& p = cases[i].first;
+        const std::string msg = i < 2 ? message_of([&] { (void)ks::read_mesh(p); }, p)
+                                      : message_of([&] { ks::write_mesh(p, mesh); }, p);
+        INFO("message: ", msg);
+        CHECK(printable(msg));
+        CHECK(msg.find(shown) != std::string::npos);
+        CHECK(msg.find(cases[i].second) != std::string::npos);
+    }
+    // The directory named inside the message is escaped too.
+    const std::string dir_msg = message_of([&] { ks::write_mesh(dir / odd / "m.ply", mesh); }, dir / odd / "m.ply");
+    CHECK(dir_msg.find("directory '" + (dir / "").string() + shown + "' does not exist") != std::string::npos);
+}
+
 TEST_CASE("failed writes leave no output and no temporary file") {
     TempDir dir;
     const ks::IndexedMesh mesh = ks::read_mesh(data("bun_zipper_res4.ply"));

@@ -180,7 +180,7 @@ inline void check_extension(const std::filesystem::path& path, const std::string
         what = "polylines";
     }
     if (!ok)
-        throw io_error(path.string(), "unsupported extension '" + path.extension().string() + "' for " + what +
+        throw io_error(path.string(), "unsupported extension '" + detail::printable(path.extension().string()) + "' for " + what +
                                           "; kintsugi writes " + list);
 }
 

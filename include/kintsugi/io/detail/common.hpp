@@ -165,27 +165,6 @@ struct RawGeometry {
     ReadInfo info;
 };
 
-/// `s` with every byte outside printable ASCII escaped (\t, \r, \n, \xHH), so that file
-/// content quoted in a message or in ReadInfo shows no invisible or raw bytes.
-[[nodiscard]] inline std::string printable(std::string_view s) {
-    static constexpr char hex[] = "0123456789ABCDEF";
-    std::string out;
-    out.reserve(s.size());
-    for (const char ch : s) {
-        const auto c = static_cast<unsigned char>(ch);
-        if (c >= 0x20 && c < 0x7F) out += ch;
-        else if (c == '\t') out += "\\t";
-        else if (c == '\r') out += "\\r";
-        else if (c == '\n') out += "\\n";
-        else {
-            out += "\\x";
-            out += hex[c >> 4];
-            out += hex[c & 15];
-        }
-    }
-    return out;
-}
-
 /// Adds `raw` (escaped by printable()) to info.ignored_properties once. The list keeps at
 /// most 64 names, then ends with "..." (a garbage file must not make it quadratic).
 inline void note_ignored(ReadInfo& info, std::string_view raw) {

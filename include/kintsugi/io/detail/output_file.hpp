@@ -91,7 +91,7 @@ inline std::filesystem::path resolve_output_target(const std::filesystem::path& 
         if (!fs::is_symlink(fs::symlink_status(p, ec))) return p;
         if (hops == 40) throw io_error(name, "too many levels of symbolic links");
         const fs::path next = fs::read_symlink(p, ec);
-        if (ec) throw io_error(name, "cannot read the symbolic link '" + p.string() + "': " + ec.message());
+        if (ec) throw io_error(name, "cannot read the symbolic link '" + printable(p.string()) + "': " + ec.message());
         p = next.is_absolute() ? next : p.parent_path() / next;
     }
 }
@@ -150,7 +150,7 @@ public:
         std::filesystem::path dir = target_.parent_path();
         if (dir.empty()) dir = ".";
         if (!fs::is_directory(dir, ec))
-            throw io_error(name_, "cannot write: directory '" + dir.string() + "' does not exist");
+            throw io_error(name_, "cannot write: directory '" + printable(dir.string()) + "' does not exist");
         std::random_device rd;
         int err = 0;
         for (int attempt = 0; attempt < 16 && !file_; ++attempt) {
@@ -164,7 +164,7 @@ public:
             if (!file_ && err != EEXIST) break;
         }
         if (!file_)
-            throw io_error(name_, "cannot create a temporary file in '" + dir.string() +
+            throw io_error(name_, "cannot create a temporary file in '" + printable(dir.string()) +
                                       "': " + std::generic_category().message(err));
         // An existing file keeps its permissions.
         if (fs::is_regular_file(st)) fs::permissions(tmp_, st.permissions(), ec);
