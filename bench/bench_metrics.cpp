@@ -16,6 +16,11 @@
 // number of samples per mesh (200,000), sequential; kintsugi's compare on 1 thread and
 // on all threads. kintsugi computes more (mean, RMS, p99, F-score, normal consistency).
 // The ratios are printed at the end.
+//
+// compare on a fan against a grid of as many faces (issue 16): a disk of 20,000 (or 200,000)
+// slivers around one vertex, and a square grid, each against a copy with every vertex moved by
+// Gaussian noise (sigma 0.002 of the radius), 200,000 samples, 1 thread. Axis-aligned boxes made
+// the 20K fan 60x slower than the grid (docs/methods/spatial.md); the ratio is printed at the end.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
@@ -38,6 +43,8 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -156,10 +163,60 @@ void BM_cgal_approximate_Hausdorff(benchmark::State& state) {
     state.counters["hausdorff_ba"] = ba;
 }
 
+/// A fan of n slivers (centre, n rim vertices on the unit circle, faces (0, i, i + 1)) or a grid
+/// of about n faces on [-1, 1]^2, and a copy of it with every vertex moved by noise.
+std::pair<ks::IndexedMesh, ks::IndexedMesh> fan_or_grid(bool fan, int n) {
+    ks::IndexedMesh m;
+    if (fan) {
+        m.vertices.push_back(ks::Vec3::Zero());
+        for (int i = 0; i < n; ++i) {
+            const double a = 2 * std::numbers::pi * i / n;
+            m.vertices.push_back(ks::Vec3(std::cos(a), std::sin(a), 0));
+        }
+        for (int i = 0; i < n; ++i) m.faces.push_back({0, ks::Index(1 + i), ks::Index(1 + (i + 1) % n)});
+    } else {
+        const int k = static_cast<int>(std::sqrt(n / 2.0));
+        for (int j = 0; j <= k; ++j)
+            for (int i = 0; i <= k; ++i) m.vertices.push_back(ks::Vec3(2.0 * i / k - 1, 2.0 * j / k - 1, 0));
+        for (int j = 0; j < k; ++j)
+            for (int i = 0; i < k; ++i) {
+                const ks::Index a = ks::Index(j * (k + 1) + i);
+                m.faces.push_back({a, a + 1, a + ks::Index(k) + 2});
+                m.faces.push_back({a, a + ks::Index(k) + 2, a + ks::Index(k) + 1});
+            }
+    }
+    ks::IndexedMesh noisy = m;
+    std::mt19937 rng(1);
+    std::normal_distribution<double> g(0, 0.002);
+    for (auto& v : noisy.vertices) v += ks::Vec3(g(rng), g(rng), g(rng));
+    return {std::move(noisy), std::move(m)};
+}
+
+/// compare(noisy copy, mesh) on a fan (range(0) = 1) or a grid (0) of range(1) faces, 1 thread.
+void BM_compare_fan_vs_grid(benchmark::State& state) {
+    const auto [a, b] = fan_or_grid(state.range(0) == 1, static_cast<int>(state.range(1)));
+    ks::ThreadLimit limit(1);
+    ks::DistanceReport r;
+    for (auto _ : state) {
+        r = ks::compare(a, b, {.samples = kSamples});
+        benchmark::DoNotOptimize(r.chamfer);
+    }
+    state.counters["faces"] = static_cast<double>(b.faces.size());
+    state.counters["mean_ab"] = r.a_to_b.mean;
+}
+
 BENCHMARK(BM_kintsugi_topology_report)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 BENCHMARK(BM_cgal_topology)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 BENCHMARK(BM_kintsugi_compare)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
 BENCHMARK(BM_cgal_approximate_Hausdorff)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
+BENCHMARK(BM_compare_fan_vs_grid)
+    ->ArgNames({"fan", "faces"})
+    ->Args({1, 20000})
+    ->Args({0, 20000})
+    ->Args({1, 200000})
+    ->Args({0, 200000})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(1.0);
 
 }  // namespace
 
@@ -178,5 +235,11 @@ int main(int argc, char** argv) {
                         k1, ch, ch / k1);
         if (kn > 0 && ch > 0)
             std::printf("  compare (%d threads) %.1f ms: %.2fx\n", ks::max_threads(), kn, ch / kn);
+        for (const char* faces : {"20000", "200000"}) {
+            const double f = r.cpu(std::string("BM_compare_fan_vs_grid/fan:1/faces:") + faces),
+                         g = r.cpu(std::string("BM_compare_fan_vs_grid/fan:0/faces:") + faces);
+            if (f > 0 && g > 0)
+                std::printf("  compare, %s faces, 1 thread (CPU): fan %.1f ms vs grid %.1f ms: %.2fx\n", faces, f, g, f / g);
+        }
     });
 }
