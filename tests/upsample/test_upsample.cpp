@@ -293,6 +293,8 @@ TEST_CASE("levels of detail: every prefix covers the sphere at its own radius") 
     CHECK(r.level_counts[1] < r.level_counts[2]);
     CHECK(r.level_counts[2] == r.surfels.points.size());
     MESSAGE("levels: rounds " << r.rounds << ", not placed " << r.not_placed << ", verified " << r.coverage_verified);
+    // Two levels are verified (the third drops 46 placements on existing centres).
+    CHECK(ks::fill_surfel_gaps(in, {.radius_rel = 0.02, .levels = 2}).coverage_verified);
     const ks::PointCloud dense = fibonacci_sphere(100000);
     for (std::size_t l = 0; l < 3; ++l) {
         ks::PointCloud prefix;

@@ -238,9 +238,16 @@ inline void fill_plane(Scalar ri, Scalar rn, std::vector<Circle>& circles, Plane
                 // (c) one new surfel at the orthocentre of the three centres.
                 const Vec2 q0 = orthocentre(Vec2::Zero(), circles[static_cast<std::size_t>(left)].c,
                                             circles[static_cast<std::size_t>(right)].c);
+                // A right angle at q_j or q_{j+1} puts the orthocentre on that centre: a
+                // disk there would repeat the neighbour, so (d) is taken instead.
+                auto on_centre = [&](const Vec2& q) {
+                    for (const Circle& k : circles)
+                        if ((k.c - q).norm() < 0.1 * rn) return true;
+                    return false;
+                };
                 if (q0.allFinite()) {
                     const Vec2 q = slide(q0);
-                    if (arc_contains(arc_on_boundary(ri, Circle{q, rn}), cur, gap.b)) {
+                    if (!on_centre(q) && arc_contains(arc_on_boundary(ri, Circle{q, rn}), cur, gap.b)) {
                         place(q);
                         ++out.rule_c;
                         break;
