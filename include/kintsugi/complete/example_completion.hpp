@@ -1,0 +1,871 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file example_completion.hpp
+/// @brief Example-based surface completion: holes are filled with geometry that
+/// resembles the rest of the object, by minimising one global energy of local-shape
+/// similarity (Kawai, Sato, Yokoya 2009). Measurements and departures from the paper:
+/// docs/methods/example_completion.md.
+///
+/// @code
+/// kintsugi::IndexedMesh mesh = kintsugi::read_mesh("scan.ply");
+/// auto r = kintsugi::complete_holes_example_based(mesh, {.max_hole_size = 0.1});
+/// // r.filled_holes, r.new_vertices, r.energy[level][iteration], r.timings
+/// @endcode
+
+#include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/core/concepts.hpp>
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/error.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/halfedge_mesh.hpp>
+#include <kintsugi/mesh/holes.hpp>
+#include <kintsugi/spatial/jet_fit.hpp>
+#include <kintsugi/spatial/kd_tree.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace kintsugi {
+
+/// One level of the coarse-to-fine schedule (Table 1 of the paper); lengths are in
+/// units of l_ave, the mean edge length of the data region.
+struct CompletionLevel {
+    Scalar a_radius = 9;      ///< radius of the sphere A whose shape is compared (SSD), > 0
+    Scalar split_above = 4;   ///< patch edges longer than this are split, > merge_below
+    Scalar merge_below = 1.5; ///< patch edges shorter than this are collapsed, >= 0
+    /// Fraction of the fixed vertices of Ω' (around the hole) left out of the energy,
+    /// in [0, 1): the coarse levels look at fewer of them.
+    Scalar thin_fraction = Scalar(8) / 9;
+};
+
+/// How the hole is first closed before the energy minimisation.
+enum class InitialPatch {
+    thin_plate,  ///< fill_holes (minimum-area triangulation, refinement, biharmonic fairing)
+    fan,         ///< the paper's fan from the boundary's centroid
+};
+
+/// Parameters of complete_holes_example_based (aggregate; field order is API, append only).
+struct CompletionParams {
+    /// Holes filled: every boundary loop that is not the outer border and whose extent
+    /// (bounding-box diagonal) is at most this fraction of the mesh's diagonal, (0, inf),
+    /// default 0.25. Ignored when `holes` is given.
+    Scalar max_hole_size = 0.25;
+    /// Holes with more boundary edges than this are left open; 0 = no limit (default).
+    std::size_t max_hole_edges = 0;
+    /// Explicit holes (boundary loops, as find_boundary_loops gives them); when not
+    /// empty, detection is skipped and exactly these are filled.
+    std::vector<std::vector<Index>> holes = {};
+    /// The outer-border rule of find_boundary_loops (HoleParams::outer_border_extent,
+    /// default 0.75): the outer border of an open scan is never filled.
+    Scalar outer_border_extent = Scalar(0.75);
+    /// Initial patch, default thin_plate (closer to the truth before and after the
+    /// minimisation; docs/methods/example_completion.md).
+    InitialPatch initial = InitialPatch::thin_plate;
+    /// s of the weights w = 1/s^m inside the hole (m = links to the hole boundary),
+    /// > 1, default 2 (the paper's models I and II): larger trusts the rim more.
+    Scalar s = 2;
+    /// Candidates whose SSD is computed: the top_percent % of the data vertices by
+    /// curvature likeness K (eq. 9), in (0, 100], default 10 (the paper's n).
+    Scalar top_percent = 10;
+    /// The coarse-to-fine schedule, default Table 1: A = 9, 7, 5; split 4, 2, 1.3;
+    /// merge 1.5, 0.8, 0.4; thinned 8/9, 3/4, 0.
+    std::vector<CompletionLevel> levels = {{9, 4, 1.5, Scalar(8) / 9}, {7, 2, 0.8, Scalar(0.75)}, {5, 1.3, 0.4, 0}};
+    /// Radius of the range B of the quadric fits that give the frames (eq. 3-7), in
+    /// l_ave, > 0, default 12 (the paper used 8 to 26 by model).
+    Scalar b_radius = 12;
+    /// Most iterations per level, >= 1 (default 8): a level also ends when the energy
+    /// falls by less than `tolerance` (relative) or an iteration would raise it.
+    std::size_t max_iterations = 8;
+    /// Relative energy decrease below which a level has converged, >= 0, default 0.01.
+    Scalar tolerance = Scalar(0.01);
+    /// Data vertices examined as candidates p̂ (an even random subset when the data
+    /// region is larger), >= 1, default 3000: bounds the search's cost on big meshes.
+    std::size_t max_candidates = 3000;
+    /// Vertices of A used to rank candidates before the exact SSD of the best three,
+    /// >= 4, default 24.
+    std::size_t search_samples = 24;
+    /// Seed of the candidate subset and of the thinning (results depend on it only).
+    std::uint64_t seed = 0;
+    RunControl control{};
+};
+
+/// Result of complete_holes_example_based.
+struct CompletionResult {
+    Status status = Status::ok;
+    std::size_t filled_holes = 0;       ///< holes closed
+    std::vector<std::vector<Index>> unfilled_holes;  ///< selected loops that could not be closed
+    std::size_t new_vertices = 0;       ///< appended after the existing vertices
+    std::size_t new_faces = 0;          ///< appended after the existing faces
+    /// Energy E (eq. 1, squared length units) per level: first after the initial
+    /// search, then after every accepted iteration (non-increasing within a level).
+    std::vector<std::vector<Scalar>> energy;
+    Scalar mean_edge_length = 0;        ///< l_ave of the data region
+    std::vector<StageTiming> timings;   ///< detect, initial patch, level 1..n, write
+};
+
+namespace detail::completion {
+
+/// Orthonormal frame at a vertex: origin o, principal directions x (k1), y (k2), normal z.
+struct LocalFrame {
+    Vec3 o = Vec3::Zero(), x = Vec3::UnitX(), y = Vec3::UnitY(), z = Vec3::UnitZ();
+    Scalar k1 = 0, k2 = 0;
+    [[nodiscard]] Vec3 local(const Vec3& p) const {
+        const Vec3 d = p - o;
+        return {d.dot(x), d.dot(y), d.dot(z)};
+    }
+    [[nodiscard]] Vec3 local_dir(const Vec3& d) const { return {d.dot(x), d.dot(y), d.dot(z)}; }
+};
+
+/// Frame by the quadric fit of the points within B (PCA frame, z = quadric, normal and
+/// principal directions at the vertex), oriented along `ref`. Flat or degenerate: any
+/// orthonormal x, y around the fit's (or ref's) normal.
+inline LocalFrame fit_frame(const Vec3& p, const Vec3& ref, const KdTree& tree, Scalar rb2,
+                            std::vector<Neighbor>& nb) {
+    tree.radius_search_squared(p, rb2, nb, false);
+    LocalFrame f;
+    f.o = p;
+    JetFit j;
+    if (nb.size() >= 8)
+        j = detail::fit_jet([&](std::size_t k) -> const Vec3& { return tree.point(nb[k].index); }, nb.size(), p, 2,
+                            true);
+    if (j.valid && j.d1.allFinite() && j.d2.allFinite()) {
+        orient_jet(j, ref);
+        f.z = j.normal;
+        f.x = j.d1;
+        f.y = f.z.cross(f.x).normalized();
+        f.k1 = j.k1;
+        f.k2 = j.k2;
+        return f;
+    }
+    f.z = ref.norm() > 0 ? Vec3(ref.normalized()) : Vec3::UnitZ();
+    const Vec3 a = std::abs(f.z.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+    f.x = (a - a.dot(f.z) * f.z).normalized();
+    f.y = f.z.cross(f.x);
+    return f;
+}
+
+/// The data surface around a candidate, as heights over its frame's (x, y) plane on a
+/// square grid of half-width `r` cells (NaN where no data triangle projects).
+struct HeightMaps {
+    int r = 0, g = 0;           ///< half-width in cells, side g = 2 r + 1
+    Scalar cell = 1, inv_cell = 1;
+    std::vector<float> h;       ///< g * g per candidate
+
+    [[nodiscard]] const float* map(std::size_t c) const { return h.data() + c * static_cast<std::size_t>(g * g); }
+
+    /// Bilinear height at (u, v); false outside the grid or where no data is near.
+    bool sample(const float* H, Scalar u, Scalar v, Scalar& out) const {
+        const Scalar gu = u * inv_cell + r, gv = v * inv_cell + r;
+        if (!(gu >= 0 && gv >= 0 && gu <= g - 1 && gv <= g - 1)) return false;
+        const int i = std::min(static_cast<int>(gu), g - 2), j = std::min(static_cast<int>(gv), g - 2);
+        const Scalar fu = gu - i, fv = gv - j;
+        const float c[4] = {H[i * g + j], H[(i + 1) * g + j], H[i * g + j + 1], H[(i + 1) * g + j + 1]};
+        const Scalar w[4] = {(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv};
+        Scalar s = 0, ws = 0;
+        for (int k = 0; k < 4; ++k)
+            if (!std::isnan(c[k])) {
+                s += w[k] * c[k];
+                ws += w[k];
+            }
+        if (!(ws > 1e-6)) return false;
+        out = s / ws;
+        return true;
+    }
+
+    /// Where the line q + t d (candidate-local, |d| = 1) meets the height field: Newton
+    /// steps on t; false when it leaves the grid, finds no data or |t| > tmax.
+    bool intersect(const float* H, const Vec3& q, const Vec3& d, Scalar tmax, Scalar& t, int iterations = 5) const {
+        t = 0;
+        for (int it = 0; it < iterations; ++it) {
+            const Vec3 x = q + t * d;
+            Scalar h0 = 0, h1 = 0;
+            if (!sample(H, x.x(), x.y(), h0)) return false;
+            Scalar slope = d.z();
+            if (iterations > 2 && sample(H, x.x() + cell * d.x(), x.y() + cell * d.y(), h1)) slope -= (h1 - h0) * inv_cell;
+            if (std::abs(slope) < Scalar(0.2)) slope = slope < 0 ? Scalar(-0.2) : Scalar(0.2);
+            const Scalar step = (x.z() - h0) / slope;
+            t -= step;
+            if (!(std::abs(t) <= tmax)) return false;
+            if (std::abs(step) < Scalar(1e-4) * cell) break;
+        }
+        return true;
+    }
+};
+
+/// A vertex of A in the frame of the sphere's centre: position and normal direction.
+struct Sample {
+    Vec3 q, d;
+};
+
+/// SSD (eq. 2) of samples against height map H with the frame mirrored by (sx, sy):
+/// mean squared distance along each sample's normal line; a line that misses costs miss2.
+/// Stops early (returning +inf) once the SSD is sure to exceed `bound`.
+inline Scalar ssd(const HeightMaps& hm, const float* H, const Sample* s, std::size_t n, std::size_t stride, int variant,
+                  Scalar tmax, Scalar miss2, Scalar bound = std::numeric_limits<Scalar>::infinity(), int iterations = 5) {
+    const Scalar sx = (variant & 1) ? -1 : 1, sy = (variant & 2) ? -1 : 1;
+    const std::size_t total = n == 0 ? 0 : (n - 1) / stride + 1;
+    const Scalar limit = bound * static_cast<Scalar>(total);
+    Scalar sum = 0;
+    for (std::size_t k = 0; k < n; k += stride) {
+        const Vec3 q(sx * s[k].q.x(), sy * s[k].q.y(), s[k].q.z());
+        const Vec3 d(sx * s[k].d.x(), sy * s[k].d.y(), s[k].d.z());
+        Scalar t = 0;
+        sum += hm.intersect(H, q, d, tmax, t, iterations) ? t * t : miss2;
+        if (sum > limit) return std::numeric_limits<Scalar>::infinity();
+    }
+    return total ? sum / static_cast<Scalar>(total) : miss2;
+}
+
+/// A correspondence p -> p̂: candidate index (in the level's pool) and mirror variant.
+struct Match {
+    std::uint32_t cand = std::numeric_limits<std::uint32_t>::max();
+    std::uint8_t variant = 0;
+    [[nodiscard]] bool valid() const { return cand != std::numeric_limits<std::uint32_t>::max(); }
+};
+
+/// Deterministic uniform number in [0, 1) from a vertex, a level and the seed.
+inline Scalar hash01(std::uint64_t v, std::uint64_t level, std::uint64_t seed) {
+    std::uint64_t x = v * 0x9E3779B97F4A7C15ULL ^ (level + 1) * 0xC2B2AE3D27D4EB4FULL ^ seed * 0x165667B19E3779F9ULL;
+    x ^= x >> 33;
+    x *= 0xff51afd7ed558ccdULL;
+    x ^= x >> 33;
+    x *= 0xc4ceb9fe1a85ec53ULL;
+    x ^= x >> 33;
+    return static_cast<Scalar>(x >> 11) * Scalar(1.0 / 9007199254740992.0);
+}
+
+/// Whether moving the removed end of the collapse of h to `p` keeps every other face
+/// around both ends from turning over.
+inline bool collapse_keeps_orientation(const HalfedgeMesh& m, Index h, const Vec3& p) {
+    const Index a = m.source(h), b = m.target(h);
+    std::vector<Index> out;
+    for (const Index v : {a, b}) {
+        m.outgoing_halfedges(v, out);
+        for (const Index e : out) {
+            const Index f = HalfedgeMesh::face(e);
+            if (f == HalfedgeMesh::face(h) || (m.twin(h) != HalfedgeMesh::invalid && f == HalfedgeMesh::face(m.twin(h))))
+                continue;
+            const Index u = m.target(e), w = m.opposite(e);
+            if (u == a || u == b || w == a || w == b) continue;
+            const Vec3 n0 = (m.position(u) - m.position(v)).cross(m.position(w) - m.position(v));
+            const Vec3 n1 = (m.position(u) - p).cross(m.position(w) - p);
+            if (!(n0.dot(n1) > 0.2 * n0.norm() * n1.norm())) return false;
+        }
+    }
+    return true;
+}
+
+/// The working state: the mesh with its patch, which vertices are new (Ω).
+struct State {
+    HalfedgeMesh hm;
+    std::vector<std::uint8_t> omega;  ///< per vertex slot: 1 = patch vertex (moves)
+    std::vector<Match> match;         ///< per vertex slot
+    std::size_t nv0 = 0, nf0 = 0;     ///< data vertices and faces (never edited)
+
+    void grow() {
+        omega.resize(hm.vertex_capacity(), 0);
+        match.resize(hm.vertex_capacity());
+    }
+    [[nodiscard]] bool patch_face(Index f) const { return f >= nf0 && !hm.is_removed_face(f); }
+    [[nodiscard]] bool patch_interior(Index h) const {
+        const Index g = hm.twin(h);
+        return g != HalfedgeMesh::invalid && patch_face(HalfedgeMesh::face(h)) && patch_face(HalfedgeMesh::face(g));
+    }
+    [[nodiscard]] Scalar length(Index h) const { return (hm.position(hm.target(h)) - hm.position(hm.source(h))).norm(); }
+
+    void flip_to_delaunay() {
+        for (int sweep = 0; sweep < 20; ++sweep) {
+            bool any = false;
+            for (Index h = 3 * nf0; h < hm.halfedge_capacity(); ++h) {
+                if (hm.is_removed_face(HalfedgeMesh::face(h)) || !patch_interior(h) || hm.twin(h) < h) continue;
+                if (!is_locally_delaunay(hm, h) && hm.flip(h)) any = true;
+            }
+            if (!any) return;
+        }
+    }
+
+    /// Step (iii): split patch edges longer than hi, collapse those between two patch
+    /// vertices shorter than lo (a data vertex never moves), Delaunay flips in between.
+    void remesh(Scalar hi, Scalar lo) {
+        for (int pass = 0; pass < 6; ++pass) {
+            bool any = false;
+            const Index end = hm.halfedge_capacity();
+            for (Index h = 3 * nf0; h < end; ++h) {
+                if (hm.is_removed_face(HalfedgeMesh::face(h)) || !patch_interior(h) || hm.twin(h) < h) continue;
+                if (length(h) <= hi) continue;
+                const Index m = hm.split(h, 0.5);
+                grow();
+                omega[m] = 1;
+                match[m] = Match{};
+                any = true;
+            }
+            if (!any) break;
+            flip_to_delaunay();
+        }
+        flip_to_delaunay();
+        for (int pass = 0; pass < 4; ++pass) {
+            bool any = false;
+            for (Index h = 3 * nf0; h < hm.halfedge_capacity(); ++h) {
+                if (hm.is_removed_face(HalfedgeMesh::face(h)) || !patch_interior(h)) continue;
+                const Index a = hm.source(h), b = hm.target(h);
+                // Only two patch vertices merge (at the midpoint): the rim keeps its ring of
+                // new vertices, so a small hole is never emptied by a coarse level.
+                if (!omega[a] || !omega[b] || hm.twin(h) < h) continue;
+                if (length(h) >= lo) continue;
+                const Scalar t = Scalar(0.5);
+                const Vec3 p = hm.position(a) + t * (hm.position(b) - hm.position(a));
+                if (!hm.can_collapse(h) || !collapse_keeps_orientation(hm, h, p)) continue;
+                hm.collapse(h, t);
+                any = true;
+            }
+            if (!any) break;
+            flip_to_delaunay();
+        }
+    }
+};
+
+}  // namespace detail::completion
+
+/// @brief Fills holes of a triangle mesh with geometry that resembles the rest of the
+/// object (Kawai, Sato, Yokoya, "3D surface completion by minimizing energy based on
+/// similarity of local shape", TVRSJ 2009; docs/methods/example_completion.md).
+///
+/// The selected holes are closed by an initial patch (thin-plate fill or the paper's
+/// fan); then, per level of a coarse-to-fine schedule, three steps repeat until the
+/// energy E (eq. 1) converges: (i) each vertex p of Ω' (the patch and the vertices
+/// within A of it) finds the data vertex p̂ whose surface, aligned by the two quadric
+/// frames (eq. 3-7, mirrored frames too), is closest to p's neighbourhood A along the
+/// normal lines (SSD, eq. 2), testing the top_percent % of candidates by curvature
+/// likeness (eq. 9); (ii) every patch vertex moves at once along its normal to the
+/// weighted mean of where its normal line meets the surfaces its neighbours matched
+/// (eq. 16), weights 1 outside and 1/s^m inside the hole; (iii) patch edges are split or
+/// collapsed to keep the level's density. An iteration that would raise E is undone and
+/// ends the level, so E never rises within a level.
+///
+/// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). The existing
+///         vertices and faces are untouched; new ones are appended. An IndexedMesh with
+///         normals receives normals for the new vertices.
+/// @param mesh   an oriented 2-manifold with boundary
+/// @param params hole selection, schedule, cancellation (CompletionParams)
+/// @throws invalid_input (mesh untouched) naming the element when the mesh is empty,
+///         not an oriented manifold (including a boundary that touches itself: a
+///         non-manifold vertex), has NaN/Inf coordinates, a given hole is not a
+///         boundary loop, or a parameter is out of range.
+/// @return Status::ok (closed holes counted, loops that could not be triangulated in
+///         unfilled_holes); Status::cancelled: the mesh is untouched.
+template <TopologyMutableMesh M>
+CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& params = {}) {
+    using namespace detail::completion;
+    const std::string fn = "kintsugi::complete_holes_example_based: ";
+    auto bad = [&](const std::string& what) { throw invalid_input(fn + what); };
+    if (!(params.max_hole_size > 0)) bad("max_hole_size must be > 0 (fraction of the diagonal, default 0.25)");
+    if (!(params.outer_border_extent >= 0)) bad("outer_border_extent must be >= 0 (default 0.75)");
+    if (!(params.s > 1) || !std::isfinite(params.s)) bad("s = " + std::to_string(params.s) + " must be finite and > 1 (default 2)");
+    if (!(params.top_percent > 0 && params.top_percent <= 100))
+        bad("top_percent = " + std::to_string(params.top_percent) + " must lie in (0, 100] (default 10)");
+    if (params.levels.empty()) bad("levels is empty; give at least one level (default: Table 1's three)");
+    for (std::size_t i = 0; i < params.levels.size(); ++i) {
+        const auto& L = params.levels[i];
+        const std::string w = "level " + std::to_string(i + 1) + ": ";
+        if (!(L.a_radius > 0) || !std::isfinite(L.a_radius)) bad(w + "a_radius must be finite and > 0");
+        if (!(L.merge_below >= 0) || !(L.split_above > 2 * L.merge_below) || !std::isfinite(L.split_above))
+            bad(w + "need 0 <= merge_below and split_above > 2 merge_below (finite), else splits and merges undo each other");
+        if (!(L.thin_fraction >= 0 && L.thin_fraction < 1)) bad(w + "thin_fraction must lie in [0, 1)");
+    }
+    if (!(params.b_radius > 0) || !std::isfinite(params.b_radius)) bad("b_radius must be finite and > 0 (default 12)");
+    if (params.max_iterations < 1) bad("max_iterations must be >= 1 (default 8)");
+    if (!(params.tolerance >= 0)) bad("tolerance must be >= 0 (default 0.01)");
+    if (params.max_candidates < 1) bad("max_candidates must be >= 1 (default 3000)");
+    if (params.search_samples < 4) bad("search_samples must be >= 4 (default 24)");
+
+    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
+    if (nv0 == 0 || nf0 == 0) bad("the mesh is empty (" + std::to_string(nv0) + " vertices, " + std::to_string(nf0) + " faces); pass a triangle mesh");
+    IndexedMesh work;
+    work.vertices.resize(nv0);
+    work.faces.resize(nf0);
+    for (Index v = 0; v < nv0; ++v) work.vertices[v] = vertex_position(mesh, v);
+    for (Index f = 0; f < nf0; ++f) work.faces[f] = face_at(mesh, f);
+    try {
+        (void)HalfedgeMesh::from_faces(work.vertices, work.faces);
+    } catch (const invalid_input& e) {
+        throw invalid_input(fn + e.what() + " (a boundary that touches itself is a non-manifold vertex)");
+    }
+
+    detail::Progress progress(params.control);
+    CompletionResult out;
+    std::vector<Vec3> new_pos;
+    std::vector<Face> new_faces;
+    try {
+        // ---- holes
+        progress.stage("detect", 0.0, 0.02);
+        std::vector<std::vector<Index>> selected;
+        if (!params.holes.empty()) {
+            selected = params.holes;
+        } else {
+            const auto loops = find_boundary_loops(work, HoleParams{params.outer_border_extent});
+            BoundingBox box;
+            for (const Vec3& p : work.vertices) box.extend(p);
+            for (const auto& l : loops.loops) {
+                if (l.outer || l.extent > params.max_hole_size * box.diagonal()) continue;
+                if (params.max_hole_edges > 0 && l.vertices.size() > params.max_hole_edges) continue;
+                selected.push_back(l.vertices);
+            }
+        }
+        // ---- initial patch
+        progress.stage("initial patch", 0.02, 0.08);
+        IndexedMesh filled = work;
+        std::vector<std::uint8_t> unfilled(selected.size(), 0);
+        if (!selected.empty()) {
+            if (params.initial == InitialPatch::thin_plate) {
+                FillParams fp;
+                fp.control.stop = params.control.stop;
+                FillResult fr;
+                try {
+                    fr = fill_holes(filled, selected, fp);
+                } catch (const invalid_input& e) {
+                    throw invalid_input(fn + e.what());
+                }
+                if (fr.status == Status::cancelled) throw detail::cancelled_exception{};
+                for (const Index u : fr.unfilled_holes) unfilled[u] = 1;
+            } else {
+                // Validate (and orient) the loops through fill_holes without refinement.
+                IndexedMesh probe = work;
+                FillParams fp;
+                fp.max_rounds = 1;
+                fp.split_factor = 4;
+                fp.fair = false;
+                try {
+                    const FillResult fr = fill_holes(probe, selected, fp);
+                    for (const Index u : fr.unfilled_holes) unfilled[u] = 1;
+                } catch (const invalid_input& e) {
+                    throw invalid_input(fn + e.what());
+                }
+                const HalfedgeMesh base = HalfedgeMesh::from_faces(work.vertices, work.faces);
+                for (std::size_t li = 0; li < selected.size(); ++li) {
+                    if (unfilled[li]) continue;
+                    auto l = selected[li];
+                    const Index hb = base.find_halfedge(l[1], l[0]);
+                    if (hb == HalfedgeMesh::invalid || !base.is_boundary_halfedge(hb)) std::reverse(l.begin(), l.end());
+                    Vec3 c = Vec3::Zero();
+                    for (const Index v : l) c += work.vertices[v];
+                    c /= static_cast<Scalar>(l.size());
+                    const Index cv = filled.vertices.size();
+                    filled.vertices.push_back(c);
+                    for (std::size_t i = 0; i < l.size(); ++i) filled.faces.push_back({l[i], l[(i + 1) % l.size()], cv});
+                }
+            }
+        }
+        for (std::size_t li = 0; li < selected.size(); ++li)
+            if (unfilled[li]) out.unfilled_holes.push_back(selected[li]);
+        out.filled_holes = selected.size() - out.unfilled_holes.size();
+
+        State st;
+        st.nv0 = nv0;
+        st.nf0 = nf0;
+        st.hm = HalfedgeMesh::from_faces(filled.vertices, filled.faces);
+        st.grow();
+        for (Index v = nv0; v < st.omega.size(); ++v) st.omega[v] = 1;
+
+        // l_ave: mean edge length of the data faces.
+        {
+            Scalar sum = 0;
+            std::size_t cnt = 0;
+            for (Index f = 0; f < nf0; ++f)
+                for (int k = 0; k < 3; ++k) {
+                    const Face& t = work.faces[f];
+                    sum += (work.vertices[t[(k + 1) % 3]] - work.vertices[t[k]]).norm();
+                    ++cnt;
+                }
+            out.mean_edge_length = sum / static_cast<Scalar>(cnt);
+        }
+        const Scalar lave = out.mean_edge_length;
+        bool any_patch_vertex = false;
+        for (Index v = nv0; v < st.omega.size(); ++v) any_patch_vertex = any_patch_vertex || st.omega[v];
+
+        // Data-only structures: faces per vertex, kd-tree over the data vertices.
+        std::vector<std::vector<Index>> vf(nv0);
+        for (Index f = 0; f < nf0; ++f)
+            for (const Index v : work.faces[f]) vf[v].push_back(f);
+        const KdTree data_tree = KdTree::adopt(work.vertices);
+        std::vector<Vec3> data_normal(nv0, Vec3::Zero());
+        for (const Face& t : work.faces) {
+            const Vec3 c = (work.vertices[t[1]] - work.vertices[t[0]]).cross(work.vertices[t[2]] - work.vertices[t[0]]);
+            for (const Index v : t) data_normal[v] += c;
+        }
+        for (Vec3& n : data_normal)
+            if (n.norm() > 0) n.normalize();
+        const Scalar rb2 = (params.b_radius * lave) * (params.b_radius * lave);
+
+        const std::size_t nlev = any_patch_vertex ? params.levels.size() : 0;
+        for (std::size_t level = 0; level < nlev; ++level) {
+            const CompletionLevel& L = params.levels[level];
+            const double f0 = 0.08 + 0.9 * static_cast<double>(level) / static_cast<double>(nlev);
+            const double f1 = 0.08 + 0.9 * static_cast<double>(level + 1) / static_cast<double>(nlev);
+            progress.stage("level " + std::to_string(level + 1), f0, f1);
+            const Scalar A = L.a_radius * lave, A2 = A * A, miss2 = A2;
+            st.remesh(L.split_above * lave, L.merge_below * lave);
+            progress.check();
+
+            // ---- the candidate pool Φ: data vertices whose sphere A holds no patch
+            // vertex and no boundary, at most max_candidates of them.
+            std::vector<Index> pool;
+            {
+                std::vector<Vec3> avoid;
+                for (Index v = 0; v < st.hm.vertex_capacity(); ++v) {
+                    if (st.hm.is_removed_vertex(v)) continue;
+                    if (st.omega[v] || st.hm.is_boundary_vertex(v)) avoid.push_back(st.hm.position(v));
+                }
+                // seam vertices (data vertices next to the patch)
+                std::vector<Index> ring;
+                for (Index v = 0; v < nv0; ++v) {
+                    st.hm.vertex_ring(v, ring);
+                    for (const Index u : ring)
+                        if (st.omega[u]) {
+                            avoid.push_back(work.vertices[v]);
+                            break;
+                        }
+                }
+                const KdTree avoid_tree = KdTree::adopt(std::move(avoid));
+                std::vector<std::uint8_t> ok(nv0, 0);
+                parallel_for(0, nv0, [&](std::size_t v) {
+                    if (vf[v].empty()) return;
+                    std::vector<Neighbor> nn;
+                    avoid_tree.knn(work.vertices[v], 1, nn);
+                    ok[v] = nn.empty() || nn[0].squared_distance > A2;
+                });
+                for (Index v = 0; v < nv0; ++v)
+                    if (ok[v]) pool.push_back(v);
+                if (pool.size() < 8) {  // a tiny mesh: every data vertex off the boundary
+                    pool.clear();
+                    for (Index v = 0; v < nv0; ++v)
+                        if (!vf[v].empty() && !st.hm.is_boundary_vertex(v)) pool.push_back(v);
+                }
+                if (pool.size() > params.max_candidates) {
+                    std::mt19937_64 rng(params.seed * 1000003ULL + level);
+                    for (std::size_t i = 0; i < params.max_candidates; ++i) {
+                        std::uniform_int_distribution<std::size_t> pick(i, pool.size() - 1);
+                        std::swap(pool[i], pool[pick(rng)]);
+                    }
+                    pool.resize(params.max_candidates);
+                    std::sort(pool.begin(), pool.end());
+                }
+            }
+            if (pool.empty()) break;
+            progress.check();
+
+            // ---- frames and height maps of the candidates
+            std::vector<LocalFrame> pframe(pool.size());
+            HeightMaps maps;
+            maps.cell = lave / 2;
+            maps.inv_cell = 1 / maps.cell;
+            maps.r = static_cast<int>(std::ceil(A / maps.cell)) + 1;
+            maps.g = 2 * maps.r + 1;
+            maps.h.assign(pool.size() * static_cast<std::size_t>(maps.g * maps.g), std::numeric_limits<float>::quiet_NaN());
+            parallel_for(
+                0, pool.size(),
+                [&](std::size_t c) {
+                    std::vector<Neighbor> nb;
+                    const Index pv = pool[c];
+                    pframe[c] = fit_frame(work.vertices[pv], data_normal[pv], data_tree, rb2, nb);
+                    const LocalFrame& F = pframe[c];
+                    const Scalar reach = (maps.r + 1) * maps.cell * Scalar(1.5) + lave;
+                    data_tree.radius_search_squared(F.o, reach * reach, nb, false);
+                    // Each face once: through the first of its corners within reach.
+                    std::vector<Index> faces;
+                    auto within = [&](Index v) { return (work.vertices[v] - F.o).squaredNorm() <= reach * reach; };
+                    for (const Neighbor& n : nb)
+                        for (const Index f : vf[n.index]) {
+                            const Face& t = work.faces[f];
+                            const bool first = t[0] == n.index || (t[1] == n.index && !within(t[0])) ||
+                                               (t[2] == n.index && !within(t[0]) && !within(t[1]));
+                            if (first) faces.push_back(f);
+                        }
+                    float* H = maps.h.data() + c * static_cast<std::size_t>(maps.g * maps.g);
+                    for (const Index f : faces) {
+                        const Face& t = work.faces[f];
+                        const Vec3 a = F.local(work.vertices[t[0]]), b = F.local(work.vertices[t[1]]),
+                                   d = F.local(work.vertices[t[2]]);
+                        const Scalar den = (b.x() - a.x()) * (d.y() - a.y()) - (d.x() - a.x()) * (b.y() - a.y());
+                        if (!(std::abs(den) > 1e-12 * lave * lave)) continue;
+                        const Scalar lo_u = std::min({a.x(), b.x(), d.x()}), hi_u = std::max({a.x(), b.x(), d.x()});
+                        const Scalar lo_v = std::min({a.y(), b.y(), d.y()}), hi_v = std::max({a.y(), b.y(), d.y()});
+                        const int i0 = std::max(0, static_cast<int>(std::ceil(lo_u * maps.inv_cell + maps.r)));
+                        const int i1 = std::min(maps.g - 1, static_cast<int>(std::floor(hi_u * maps.inv_cell + maps.r)));
+                        const int j0 = std::max(0, static_cast<int>(std::ceil(lo_v * maps.inv_cell + maps.r)));
+                        const int j1 = std::min(maps.g - 1, static_cast<int>(std::floor(hi_v * maps.inv_cell + maps.r)));
+                        for (int i = i0; i <= i1; ++i)
+                            for (int j = j0; j <= j1; ++j) {
+                                const Scalar u = (i - maps.r) * maps.cell, v = (j - maps.r) * maps.cell;
+                                const Scalar l1 = ((b.x() - u) * (d.y() - v) - (d.x() - u) * (b.y() - v)) / den;
+                                const Scalar l2 = ((d.x() - u) * (a.y() - v) - (a.x() - u) * (d.y() - v)) / den;
+                                const Scalar l3 = 1 - l1 - l2;
+                                if (l1 < -1e-9 || l2 < -1e-9 || l3 < -1e-9) continue;
+                                const Scalar w = l1 * a.z() + l2 * b.z() + l3 * d.z();
+                                float& cellh = H[i * maps.g + j];
+                                if (std::isnan(cellh) || std::abs(w) < std::abs(cellh)) cellh = static_cast<float>(w);
+                            }
+                    }
+                },
+                16);
+            progress.check();
+            const std::size_t top =
+                std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(params.top_percent / 100 * static_cast<Scalar>(pool.size()))));
+            for (auto& m : st.match) m = Match{};
+
+            // ---- one evaluation: Ω', frames, search (i), energy (eq. 1)
+            struct Eval {
+                std::vector<Index> active;           // vertices of Ω' in the energy, increasing
+                std::vector<LocalFrame> frame;       // per active
+                std::vector<Scalar> weight;          // per active
+                std::vector<Index> slot;             // per vertex slot: position in active, or invalid
+                Scalar energy = 0;
+            };
+            auto evaluate = [&](Eval& ev) {
+                HalfedgeMesh& hm = st.hm;
+                const std::size_t cap = hm.vertex_capacity();
+                std::vector<Index> live;
+                std::vector<Vec3> lp;
+                for (Index v = 0; v < cap; ++v)
+                    if (!hm.is_removed_vertex(v)) {
+                        live.push_back(v);
+                        lp.push_back(hm.position(v));
+                    }
+                // Vertex normals (area weighted).
+                std::vector<Vec3> vn(cap, Vec3::Zero());
+                for (Index f = 0; f < hm.face_capacity(); ++f) {
+                    if (hm.is_removed_face(f)) continue;
+                    const Index a = hm.face_vertex(f, 0), b = hm.face_vertex(f, 1), c = hm.face_vertex(f, 2);
+                    const Vec3 n = (hm.position(b) - hm.position(a)).cross(hm.position(c) - hm.position(a));
+                    vn[a] += n;
+                    vn[b] += n;
+                    vn[c] += n;
+                }
+                for (Vec3& n : vn)
+                    if (n.norm() > 0) n.normalize();
+                const KdTree tree = KdTree::adopt(lp);
+                // m: links from the hole boundary (BFS from data vertices into Ω).
+                std::vector<std::uint32_t> m(cap, std::numeric_limits<std::uint32_t>::max());
+                std::vector<Index> queue, ring;
+                for (const Index v : live)
+                    if (!st.omega[v]) m[v] = 0;
+                for (const Index v : live) {
+                    if (!st.omega[v]) continue;
+                    hm.vertex_ring(v, ring);
+                    for (const Index u : ring)
+                        if (!st.omega[u]) {
+                            m[v] = 1;
+                            queue.push_back(v);
+                            break;
+                        }
+                }
+                for (std::size_t qi = 0; qi < queue.size(); ++qi) {
+                    const Index v = queue[qi];
+                    hm.vertex_ring(v, ring);
+                    for (const Index u : ring)
+                        if (st.omega[u] && m[u] == std::numeric_limits<std::uint32_t>::max()) {
+                            m[u] = m[v] + 1;
+                            queue.push_back(u);
+                        }
+                }
+                // Ω': within A of a patch vertex; fixed ones thinned.
+                std::vector<std::uint8_t> in_omega_p(cap, 0);
+                std::vector<Neighbor> nb;
+                for (const Index v : live) {
+                    if (!st.omega[v]) continue;
+                    tree.radius_search_squared(hm.position(v), A2, nb, false);
+                    for (const Neighbor& n : nb) in_omega_p[live[n.index]] = 1;
+                }
+                ev.active.clear();
+                ev.slot.assign(cap, HalfedgeMesh::invalid);
+                for (const Index v : live) {
+                    if (!in_omega_p[v]) continue;
+                    if (!st.omega[v] && hash01(v, level, params.seed) < L.thin_fraction) continue;
+                    ev.slot[v] = ev.active.size();
+                    ev.active.push_back(v);
+                }
+                const std::size_t na = ev.active.size();
+                ev.frame.resize(na);
+                ev.weight.resize(na);
+                std::vector<Scalar> e(na, 0);
+                parallel_for(
+                    0, na,
+                    [&](std::size_t ai) {
+                        const Index v = ev.active[ai];
+                        std::vector<Neighbor> nbl;
+                        ev.frame[ai] = fit_frame(hm.position(v), vn[v], tree, rb2, nbl);
+                        const LocalFrame& F = ev.frame[ai];
+                        ev.weight[ai] = st.omega[v] ? std::pow(params.s, -static_cast<Scalar>(
+                                                                      m[v] == std::numeric_limits<std::uint32_t>::max() ? 1 : m[v]))
+                                                    : Scalar(1);
+                        tree.radius_search_squared(hm.position(v), A2, nbl, true);
+                        std::vector<Sample> S(nbl.size());
+                        for (std::size_t k = 0; k < nbl.size(); ++k) {
+                            const Index u = live[nbl[k].index];
+                            S[k] = {F.local(hm.position(u)), F.local_dir(vn[u])};
+                        }
+                        const std::size_t stride = std::max<std::size_t>(1, S.size() / params.search_samples);
+                        // Candidates by curvature likeness (eq. 9).
+                        std::vector<std::pair<Scalar, std::uint32_t>> K(pool.size());
+                        for (std::size_t c = 0; c < pool.size(); ++c) {
+                            const Scalar a = F.k1 - pframe[c].k1, b = F.k2 - pframe[c].k2;
+                            K[c] = {a * a + b * b, static_cast<std::uint32_t>(c)};
+                        }
+                        const std::size_t nt = std::min(top, K.size());
+                        std::nth_element(K.begin(), K.begin() + static_cast<std::ptrdiff_t>(nt - 1), K.end());
+                        std::sort(K.begin(), K.begin() + static_cast<std::ptrdiff_t>(nt));
+                        // Rank by the SSD of search_samples vertices of A (two Newton
+                        // steps), keep the best `keep`, then their exact SSD.
+                        constexpr std::size_t keep = 8;
+                        std::array<std::pair<Scalar, Match>, keep> best;
+                        best.fill({std::numeric_limits<Scalar>::infinity(), Match{}});
+                        for (std::size_t ti = 0; ti < nt; ++ti) {
+                            const std::uint32_t c = K[ti].second;
+                            for (int var = 0; var < 4; ++var) {
+                                const Scalar sc =
+                                    ssd(maps, maps.map(c), S.data(), S.size(), stride, var, A, miss2, best[keep - 1].first, 2);
+                                if (sc < best[keep - 1].first) {
+                                    std::size_t k = keep - 1;
+                                    for (; k > 0 && best[k - 1].first > sc; --k) best[k] = best[k - 1];
+                                    best[k] = {sc, Match{c, static_cast<std::uint8_t>(var)}};
+                                }
+                            }
+                        }
+                        Scalar bs = std::numeric_limits<Scalar>::infinity();
+                        Match bm;
+                        auto consider = [&](const Match& mm) {
+                            if (!mm.valid()) return;
+                            const Scalar sc = ssd(maps, maps.map(mm.cand), S.data(), S.size(), 1, mm.variant, A, miss2);
+                            if (sc < bs || (sc == bs && (mm.cand < bm.cand || (mm.cand == bm.cand && mm.variant < bm.variant)))) {
+                                bs = sc;
+                                bm = mm;
+                            }
+                        };
+                        consider(st.match[v]);
+                        for (const auto& b : best) consider(b.second);
+                        st.match[v] = bm;
+                        e[ai] = std::isfinite(bs) ? bs : miss2;
+                    },
+                    8);
+                Scalar num = 0, den = 0;
+                for (std::size_t ai = 0; ai < na; ++ai) {
+                    num += ev.weight[ai] * e[ai];
+                    den += ev.weight[ai];
+                }
+                ev.energy = den > 0 ? num / den : 0;
+            };
+            // ---- (ii) the parallel update of the patch vertices (eq. 16)
+            auto update = [&](const Eval& ev) {
+                HalfedgeMesh& hm = st.hm;
+                std::vector<Vec3> ap;
+                for (const Index v : ev.active) ap.push_back(hm.position(v));
+                const KdTree atree = KdTree::adopt(ap);
+                std::vector<Vec3> np(ev.active.size());
+                parallel_for(
+                    0, ev.active.size(),
+                    [&](std::size_t ai) {
+                        const Index v = ev.active[ai];
+                        np[ai] = hm.position(v);
+                        if (!st.omega[v]) return;
+                        const Vec3 p = hm.position(v), n = ev.frame[ai].z;
+                        std::vector<Neighbor> nb;
+                        atree.radius_search_squared(p, A2, nb, true);
+                        Scalar num = 0, den = 0;
+                        for (const Neighbor& k : nb) {
+                            const Index u = ev.active[k.index];
+                            const Match mk = st.match[u];
+                            if (!mk.valid()) continue;
+                            const LocalFrame& Fk = ev.frame[k.index];
+                            const Scalar sx = (mk.variant & 1) ? -1 : 1, sy = (mk.variant & 2) ? -1 : 1;
+                            Vec3 q = Fk.local(p), d = Fk.local_dir(n);
+                            q.x() *= sx;
+                            q.y() *= sy;
+                            d.x() *= sx;
+                            d.y() *= sy;
+                            Scalar t = 0;
+                            if (!maps.intersect(maps.map(mk.cand), q, d, A, t)) continue;
+                            num += ev.weight[k.index] * t;
+                            den += ev.weight[k.index];
+                        }
+                        if (den > 0) np[ai] = p + (num / den) * n;
+                    },
+                    8);
+                for (std::size_t ai = 0; ai < ev.active.size(); ++ai)
+                    if (st.omega[ev.active[ai]]) hm.position(ev.active[ai]) = np[ai];
+            };
+
+            Eval ev;
+            evaluate(ev);
+            progress.check();
+            std::vector<Scalar> hist{ev.energy};
+            for (std::size_t it = 0; it < params.max_iterations; ++it) {
+                progress.update(static_cast<double>(it + 1) / static_cast<double>(params.max_iterations + 1));
+                const State saved = st;
+                update(ev);
+                st.remesh(L.split_above * lave, L.merge_below * lave);
+                progress.check();
+                Eval next;
+                evaluate(next);
+                progress.check();
+                if (!(next.energy <= hist.back())) {
+                    st = saved;  // would raise E: undone, the level has converged
+                    break;
+                }
+                const Scalar prev = hist.back();
+                hist.push_back(next.energy);
+                ev = std::move(next);
+                if (prev - hist.back() <= params.tolerance * prev) break;
+            }
+            out.energy.push_back(std::move(hist));
+        }
+
+        // ---- write out: the live patch vertices and faces, appended in index order.
+        progress.stage("write", 0.98, 1.0);
+        std::vector<Index> map(st.hm.vertex_capacity(), HalfedgeMesh::invalid);
+        for (Index v = 0; v < nv0; ++v) map[v] = v;
+        for (Index v = nv0; v < st.hm.vertex_capacity(); ++v)
+            if (!st.hm.is_removed_vertex(v)) {
+                map[v] = nv0 + new_pos.size();
+                new_pos.push_back(st.hm.position(v));
+            }
+        for (Index f = nf0; f < st.hm.face_capacity(); ++f)
+            if (!st.hm.is_removed_face(f))
+                new_faces.push_back({map[st.hm.face_vertex(f, 0)], map[st.hm.face_vertex(f, 1)], map[st.hm.face_vertex(f, 2)]});
+        out.timings = progress.finish();
+    } catch (const detail::cancelled_exception&) {
+        CompletionResult c;
+        c.status = Status::cancelled;
+        return c;
+    }
+    if constexpr (requires { mesh_traits<M>::reserve(mesh, std::size_t{}, std::size_t{}); })
+        mesh_traits<M>::reserve(mesh, nv0 + new_pos.size(), nf0 + new_faces.size());
+    for (const Vec3& p : new_pos) mesh_traits<M>::add_vertex(mesh, p);
+    for (const Face& f : new_faces) mesh_traits<M>::add_face(mesh, f);
+    if constexpr (std::is_same_v<M, IndexedMesh>) {
+        if (mesh.normals.size() == nv0 && !new_pos.empty()) {
+            mesh.normals.resize(mesh.vertices.size(), Vec3::Zero());
+            for (const Face& f : new_faces) {
+                const Vec3 n = (mesh.vertices[f[1]] - mesh.vertices[f[0]]).cross(mesh.vertices[f[2]] - mesh.vertices[f[0]]);
+                for (const Index v : f)
+                    if (v >= nv0) mesh.normals[v] += n;
+            }
+            for (Index v = nv0; v < mesh.vertices.size(); ++v)
+                if (mesh.normals[v].norm() > 0) mesh.normals[v].normalize();
+        }
+    }
+    out.new_vertices = new_pos.size();
+    out.new_faces = new_faces.size();
+    return out;
+}
+
+}  // namespace kintsugi
