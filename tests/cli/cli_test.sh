@@ -153,6 +153,35 @@ expect 0 "reconstruct --help" -- "$bin" reconstruct --help
 if grep -Eq -- "--smoothing [^=]*=30( |$)" "$work/out" && grep -Eq -- "--epsilon [^=]*=0.004( |$)" "$work/out"; then ok; else bad "reconstruct help defaults: $(grep -- '--smoothing\|--epsilon' "$work/out")"; fi
 if grep -Eq -- "--n-max [^=]*=250( |$)" "$work/out" && grep -Eq -- "--overlap [^=]*=1.35( |$)" "$work/out" && grep -Eq -- "--resolution [^=]*=256( |$)" "$work/out"; then ok; else bad "reconstruct rbf help defaults: $(grep -- '--n-max\|--overlap\|--resolution' "$work/out")"; fi
 
+# ---- complete: bunny.off with one hole cut around vertex 300 (faces whose centroid is within 6 % of the diagonal)
+"$PY" - "$mesh" "$work/holey.off" <<'PYEOF'
+import sys, math
+t = open(sys.argv[1]).read().split(); nv, nf = int(t[1]), int(t[2]); p = 4
+V = [tuple(map(float, t[p + 3 * i:p + 3 * i + 3])) for i in range(nv)]; p += 3 * nv
+F = [tuple(map(int, t[p + 4 * i + 1:p + 4 * i + 4])) for i in range(nf)]
+diag = math.dist([min(v[j] for v in V) for j in range(3)], [max(v[j] for v in V) for j in range(3)])
+keep = [f for f in F if math.dist([sum(V[i][j] for i in f) / 3 for j in range(3)], V[300]) >= 0.06 * diag]
+used = sorted({i for f in keep for i in f}); m = {v: k for k, v in enumerate(used)}
+with open(sys.argv[2], "w") as o:
+    o.write("OFF\n%d %d 0\n" % (len(used), len(keep)))
+    o.writelines("%r %r %r\n" % V[v] for v in used)
+    o.writelines("3 %d %d %d\n" % tuple(m[i] for i in f) for f in keep)
+PYEOF
+expect 0 "info of the holey bunny" -- "$bin" info "$work/holey.off" --json
+json_check "one hole cut" "j['boundary_loops']==1"
+expect 0 "complete --json" -- "$bin" complete "$work/holey.off" "$work/completed.ply" --json
+json_check "complete fields" "j['command']=='complete' and j['filled_holes']==1 and j['new_vertices']>10 and j['vertices']==1823+j['new_vertices'] and len(j['energy'])==3 and all(all(a>=b for a,b in zip(l,l[1:])) for l in j['energy']) and 'level 3' in j['timings']"
+expect 0 "completed mesh is closed" -- "$bin" info "$work/completed.ply" --json
+json_check "completed topology" "j['closed'] is True and j['boundary_loops']==0 and j['non_manifold_edges']==0 and j['genus']==0"
+expect 0 "complete, hole too large for --max-hole-size" -- "$bin" complete "$work/holey.off" "$work/same.off" --max-hole-size 0.01 --json
+json_check "nothing filled" "j['filled_holes']==0 and j['new_vertices']==0"
+expect 1 "complete on a non-manifold mesh" -- "$bin" complete "$open_mesh" "$work/nm.ply"
+stderr_has "non-manifold named" "complete_holes_example_based: .*non-manifold\\|complete_holes_example_based: .*more than two faces"
+if [ ! -e "$work/nm.ply" ]; then ok; else bad "failed complete wrote its output"; fi
+usage "complete --max-hole-size 0" "--max-hole-size" -- "$bin" complete "$missing" "$work/o.ply" --max-hole-size 0
+usage "complete --initial disk" "--initial" -- "$bin" complete "$missing" "$work/o.ply" --initial disk
+usage "complete --s 1" "--s" -- "$bin" complete "$missing" "$work/o.ply" --s 1
+
 # ---- outputs are checked before any input is read (the error names the output)
 expect 1 "unwritable output checked first" -- "$bin" normals "$missing" "/nonexistent-dir/x.ply"
 stderr_has "unwritable output named" "/nonexistent-dir/x.ply"

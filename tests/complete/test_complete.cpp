@@ -3,42 +3,35 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // Example-based completion (complete/example_completion.hpp), with CGAL's
 // triangulate_refine_and_fair_hole as the peer on the same holes.
-#ifndef CGAL_EIGEN3_ENABLED
-#define CGAL_EIGEN3_ENABLED 1
-#endif
-#include <doctest/doctest.h>
-
-#include "mesh/edit_fixtures.hpp"
 #include "test_data.hpp"
+#include "mesh/edit_fixtures.hpp"
 
-#include <kintsugi/adapters/cgal.hpp>
-#include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/complete/example_completion.hpp>
-#include <kintsugi/core/parallel.hpp>
-#include <kintsugi/io/read.hpp>
-#include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/spatial/triangle_index.hpp>
+#include <kintsugi/metrics/topology_report.hpp>
+#include <kintsugi/io/read.hpp>
+#include <kintsugi/core/parallel.hpp>
+#include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/adapters/cgal.hpp>
 
+#ifndef CGAL_EIGEN3_ENABLED
+#define CGAL_EIGEN3_ENABLED 1  // CGAL's fairing needs Eigen
+#endif
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Surface_mesh.h>
+#include <doctest/doctest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <sstream>
 #include <stop_token>
 
 namespace ks = kintsugi;
 using SurfaceMesh = CGAL::Surface_mesh<CGAL::Exact_predicates_inexact_constructions_kernel::Point_3>;
 
 namespace {
-
-template <class M>
-M convert(const ks::IndexedMesh& m) {
-    M out;
-    ks::assign_mesh(out, m);
-    return out;
-}
 
 // Open cylinder of radius 1, height 2, with 16 ribs along its axis: r = 1 + 0.06 cos(16 θ).
 ks::IndexedMesh ribbed_cylinder() {
@@ -85,7 +78,8 @@ std::vector<ks::Vec3> new_vertices(const ks::IndexedMesh& m, std::size_t first) 
 
 // CGAL's fair fill of every selected hole; returns the new vertices.
 std::vector<ks::Vec3> cgal_fill(const ks::IndexedMesh& in, const std::vector<std::vector<ks::Index>>& loops) {
-    SurfaceMesh sm = convert<SurfaceMesh>(in);
+    SurfaceMesh sm;
+    ks::assign_mesh(sm, in);
     std::vector<ks::Vec3> out;
     for (const auto& l : loops) {
         const auto h = sm.halfedge(SurfaceMesh::Vertex_index(static_cast<SurfaceMesh::size_type>(l[1])),
@@ -110,6 +104,27 @@ std::vector<std::vector<ks::Index>> selected_holes(const ks::IndexedMesh& m, dou
     return out;
 }
 
+// The energy per level and the stage timings, for the test's message.
+std::string history(const ks::CompletionResult& r) {
+    std::ostringstream out;
+    for (const auto& l : r.energy) {
+        out << " |";
+        for (double e : l) out << ' ' << e;
+    }
+    for (const auto& t : r.timings) out << ' ' << t.stage << '=' << t.seconds;
+    return out.str();
+}
+
+// Status ok, `holes` holes filled, manifold, oriented, `open` boundary loops left.
+void check_completed(const ks::IndexedMesh& m, const ks::CompletionResult& r, std::size_t holes, std::size_t open) {
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK(r.filled_holes == holes);
+    const auto topo = ks::topology_report(m);
+    CHECK(topo.manifold);
+    CHECK(topo.consistently_oriented);
+    CHECK(topo.boundary_loops == open);
+}
+
 void check_energy_monotone(const ks::CompletionResult& r) {
     for (std::size_t l = 0; l < r.energy.size(); ++l)
         for (std::size_t i = 1; i < r.energy[l].size(); ++i) {
@@ -128,21 +143,11 @@ TEST_CASE("complete_holes_example_based: ribbed cylinder, the ribs continue acro
     REQUIRE(holes.size() == 1);
     ks::IndexedMesh ours = in;
     const auto r = ks::complete_holes_example_based(ours);
-    REQUIRE(r.status == ks::Status::ok);
-    CHECK(r.filled_holes == 1);
-    const auto topo = ks::topology_report(ours);
-    CHECK(topo.manifold);
-    CHECK(topo.consistently_oriented);
-    CHECK(topo.boundary_loops == 2);  // the two rims of the open cylinder stay open
+    check_completed(ours, r, 1, 2);  // the two rims of the open cylinder stay open
     check_energy_monotone(r);
     const auto [our_mean, our_max] = distance_to(index, new_vertices(ours, in.vertices.size()));
     const auto [cg_mean, cg_max] = distance_to(index, cgal_fill(in, holes));
-    std::string hist;
-    for (const auto& l : r.energy) {
-        hist += " |";
-        for (double e : l) hist += " " + std::to_string(e);
-    }
-    for (const auto& t : r.timings) hist += " " + t.stage + "=" + std::to_string(t.seconds);
+    const std::string hist = history(r);
     MESSAGE("ribbed cylinder: " << r.new_vertices << " new vertices; mean distance to truth ours " << our_mean
             << " (max " << our_max << "), CGAL fair fill " << cg_mean << " (max " << cg_max << "); energy" << hist);
     CHECK(our_mean <= 0.3 * cg_mean);
@@ -174,21 +179,11 @@ TEST_CASE("complete_holes_example_based: bunny00 with three holes of 4 % of the 
     const ks::TriangleIndex index(b.truth);
     ks::IndexedMesh ours = b.in;
     const auto r = ks::complete_holes_example_based(ours);
-    REQUIRE(r.status == ks::Status::ok);
-    CHECK(r.filled_holes == 3);
-    const auto topo = ks::topology_report(ours);
-    CHECK(topo.closed);
-    CHECK(topo.manifold);
-    CHECK(topo.consistently_oriented);
+    check_completed(ours, r, 3, 0);
     check_energy_monotone(r);
     const auto [our_mean, our_max] = distance_to(index, new_vertices(ours, b.in.vertices.size()));
     const auto [cg_mean, cg_max] = distance_to(index, cgal_fill(b.in, holes));
-    std::string hist;
-    for (const auto& l : r.energy) {
-        hist += " |";
-        for (double e : l) hist += " " + std::to_string(e);
-    }
-    for (const auto& t : r.timings) hist += " " + t.stage + "=" + std::to_string(t.seconds);
+    const std::string hist = history(r);
     ks::IndexedMesh tp = b.in;
     (void)ks::fill_holes(tp, holes);
     const auto [tp_mean, tp_max] = distance_to(index, new_vertices(tp, b.in.vertices.size()));
@@ -217,7 +212,8 @@ TEST_CASE_TEMPLATE("complete_holes_example_based: shipped bunny.off with a hole,
     const ks::IndexedMesh truth = ks::read_mesh(ks::test::test_data("bunny.off").string());
     const ks::IndexedMesh in = small_bunny_with_hole();
     REQUIRE(selected_holes(in, 0.25).size() == 1);
-    M mesh = convert<M>(in);
+    M mesh;
+    ks::assign_mesh(mesh, in);
     const auto r = ks::complete_holes_example_based(mesh);
     REQUIRE(r.status == ks::Status::ok);
     CHECK(r.filled_holes == 1);

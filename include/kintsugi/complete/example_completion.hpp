@@ -402,10 +402,10 @@ CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& p
         throw invalid_input(fn + e.what() + " (a boundary that touches itself is a non-manifold vertex)");
     }
 
-    detail::Progress progress(params.control);
-    CompletionResult out;
-    std::vector<Vec3> new_pos;
+    std::vector<Vec3> new_pos;    // the patch, appended at the end
     std::vector<Face> new_faces;
+    CompletionResult out;
+    detail::Progress progress(params.control);
     try {
         // ---- holes
         progress.stage("detect", 0.0, 0.02);
@@ -847,22 +847,7 @@ CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& p
         c.status = Status::cancelled;
         return c;
     }
-    if constexpr (requires { mesh_traits<M>::reserve(mesh, std::size_t{}, std::size_t{}); })
-        mesh_traits<M>::reserve(mesh, nv0 + new_pos.size(), nf0 + new_faces.size());
-    for (const Vec3& p : new_pos) mesh_traits<M>::add_vertex(mesh, p);
-    for (const Face& f : new_faces) mesh_traits<M>::add_face(mesh, f);
-    if constexpr (std::is_same_v<M, IndexedMesh>) {
-        if (mesh.normals.size() == nv0 && !new_pos.empty()) {
-            mesh.normals.resize(mesh.vertices.size(), Vec3::Zero());
-            for (const Face& f : new_faces) {
-                const Vec3 n = (mesh.vertices[f[1]] - mesh.vertices[f[0]]).cross(mesh.vertices[f[2]] - mesh.vertices[f[0]]);
-                for (const Index v : f)
-                    if (v >= nv0) mesh.normals[v] += n;
-            }
-            for (Index v = nv0; v < mesh.vertices.size(); ++v)
-                if (mesh.normals[v].norm() > 0) mesh.normals[v].normalize();
-        }
-    }
+    detail::append_patch(mesh, new_pos, new_faces);
     out.new_vertices = new_pos.size();
     out.new_faces = new_faces.size();
     return out;

@@ -241,6 +241,30 @@ std::vector<std::array<Index, 3>> min_area_triangulation(const std::vector<Vec3>
     return tris;
 }
 
+/// Appends a patch's vertices and faces (indices already past the existing vertices) to
+/// any TopologyMutableMesh; an IndexedMesh with one normal per vertex gets area-weighted
+/// normals for the new vertices. Shared by the hole fillers.
+template <TopologyMutableMesh M>
+void append_patch(M& mesh, const std::vector<Vec3>& new_pos, const std::vector<Face>& new_faces) {
+    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
+    if constexpr (requires { mesh_traits<M>::reserve(mesh, std::size_t{}, std::size_t{}); })
+        mesh_traits<M>::reserve(mesh, nv0 + new_pos.size(), nf0 + new_faces.size());
+    for (const Vec3& p : new_pos) mesh_traits<M>::add_vertex(mesh, p);
+    for (const Face& f : new_faces) mesh_traits<M>::add_face(mesh, f);
+    if constexpr (std::is_same_v<M, IndexedMesh>) {
+        if (mesh.normals.size() == nv0 && nv0 > 0 && !new_pos.empty()) {
+            mesh.normals.resize(mesh.vertices.size(), Vec3::Zero());
+            for (const Face& f : new_faces) {
+                const Vec3 n = (mesh.vertices[f[1]] - mesh.vertices[f[0]]).cross(mesh.vertices[f[2]] - mesh.vertices[f[0]]);
+                for (const Index v : f)
+                    if (v >= nv0) mesh.normals[v] += n;
+            }
+            for (Index v = nv0; v < mesh.vertices.size(); ++v)
+                if (mesh.normals[v].norm() > 0) mesh.normals[v].normalize();
+        }
+    }
+}
+
 /// Whether the edge of h is locally Delaunay: the angles opposite it sum to at most pi.
 inline bool is_locally_delaunay(const HalfedgeMesh& m, Index h) {
     const Index g = m.twin(h);
@@ -428,22 +452,7 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
         return FillResult{Status::cancelled, 0, {}, 0, 0, {}};
     }
     // 4. Append (the existing vertices and faces are untouched).
-    if constexpr (requires { mesh_traits<M>::reserve(mesh, std::size_t{}, std::size_t{}); })
-        mesh_traits<M>::reserve(mesh, nv0 + new_pos.size(), nf0 + new_faces.size());
-    for (const Vec3& p : new_pos) mesh_traits<M>::add_vertex(mesh, p);
-    for (const Face& f : new_faces) mesh_traits<M>::add_face(mesh, f);
-    if constexpr (std::is_same_v<M, IndexedMesh>) {
-        if (mesh.normals.size() == nv0 && nv0 > 0 && !new_pos.empty()) {
-            mesh.normals.resize(mesh.vertices.size(), Vec3::Zero());
-            for (const Face& f : new_faces) {
-                const Vec3 n = (mesh.vertices[f[1]] - mesh.vertices[f[0]]).cross(mesh.vertices[f[2]] - mesh.vertices[f[0]]);
-                for (const Index v : f)
-                    if (v >= nv0) mesh.normals[v] += n;
-            }
-            for (Index v = nv0; v < mesh.vertices.size(); ++v)
-                if (mesh.normals[v].norm() > 0) mesh.normals[v].normalize();
-        }
-    }
+    detail::append_patch(mesh, new_pos, new_faces);
     out.new_vertices = new_pos.size();
     out.new_faces = new_faces.size();
     return out;
