@@ -93,6 +93,7 @@ def main():
                 to_res = 100 * mean_distance(ref_pts, mesh) / diag
                 back = 100 * mean_distance(np.asarray(mesh.vertices), ref) / diag if ref else float("nan")
                 rows.append((name, len(pcd.points), method, wall, cpu, to_res, back, len(mesh.triangles), note))
+                print("%s, %s: %.2f s wall, %.2f s CPU" % (name, method, wall, cpu), flush=True)
     print("%-10s %8s %-20s %8s %8s %12s %12s %9s %s" % ("shape", "points", "method", "wall s", "CPU s",
                                                         "ref->res %", "res->ref %", "faces", ""))
     for r in rows:
