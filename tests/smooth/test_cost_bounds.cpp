@@ -11,8 +11,10 @@
 
 #include <kintsugi/smooth/feature_bilateral.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 namespace ks = kintsugi;
 namespace ss = smooth_support;
@@ -69,6 +71,41 @@ TEST_CASE("a flat fan of 12,000 triangles around one vertex stays flat and keeps
     CHECK(rmin == doctest::Approx(1.0));
     CHECK(rmax == doctest::Approx(1.0));
     CHECK(r.features.sharp_edges.empty());
+}
+
+TEST_CASE("the stored neighbour lists of a 40,000-face fan stay within their per-item cap") {
+    namespace fbs = ks::detail::fbs;
+    const std::size_t n = 40000;  // every cube holds thousands of faces
+    std::vector<ks::Vec3> V{ks::Vec3(0, 0, 0)};
+    std::vector<ks::Face> F;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double t = 2 * std::numbers::pi * static_cast<double>(i) / n;
+        V.emplace_back(std::cos(t), std::sin(t), 0);
+        F.push_back({0, ks::Index(1 + i), ks::Index(1 + (i + 1) % n)});
+    }
+    CHECK(fbs::max_listed(8192) == fbs::max_candidates);  // meshes up to 8K items: unchanged
+    const std::size_t cap = fbs::max_listed(n);
+    CHECK(cap == (std::size_t{1} << 24) / n);
+    CHECK(fbs::max_listed(std::size_t{1} << 30) == 256);
+    fbs::FaceGeometry g;
+    fbs::compute_face_geometry(V, F, g);
+    const ks::Scalar h = 0.5;  // about the mean edge length (spokes 1, rim ~0)
+    ks::UniformGrid grid;
+    grid.build(g.centroid, h, fbs::has_area(g.area));
+    ks::RunControl control;
+    ks::detail::Progress progress(control);
+    fbs::Neighbourhoods lists;
+    const auto normals = fbs::filter_normals(g, grid, g.normal, h, 1, progress, 0, 1, nullptr, nullptr, &lists);
+    std::size_t longest = 0, shortest = n;
+    for (std::size_t t = 0; t < n; ++t) {
+        longest = std::max(longest, lists.of(t).size);
+        shortest = std::min(shortest, lists.of(t).size);
+    }
+    CHECK(longest <= cap);     // 2048 candidates a face before: about 16 KB a face
+    CHECK(shortest >= cap / 4);  // still a dense sample of the cube
+    double flat = 1;  // the filtered normals of a flat fan stay ±z
+    for (const auto& m : normals) flat = std::min(flat, std::abs(m.z()));
+    CHECK(flat == doctest::Approx(1.0));
 }
 
 TEST_CASE("an edge shared by 3,000 faces (a book of pages) gives a finite result") {

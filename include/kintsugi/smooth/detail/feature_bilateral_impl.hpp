@@ -52,6 +52,17 @@ void blocked_for(Progress& progress, std::size_t n, double from, double to, Body
 /// around one vertex: every cube holds thousands). Ordinary meshes stay far below it
 /// (a few hundred at most); above it the query tests an evenly strided subset.
 inline constexpr std::size_t max_candidates = 2048;
+/// Cap on the grid points each query behind the stored neighbour lists (filters 3
+/// and 4) tests, for lists over n items: max_candidates while the lists fit in about
+/// 16M entries (8 bytes each), less above (never below 256), so the lists' memory and
+/// each pass's work stay linear in the mesh with a small constant. Meshes up to 8K
+/// items keep max_candidates exactly; ordinary larger ones stay below the cap (cubes
+/// of 1–2 mean edges: tens to a few hundred faces). A 200K-face fan (every cube holds
+/// thousands) took 3.6 GB and 54 s with max_candidates, 0.6 GB and 10 s with this.
+inline std::size_t max_listed(std::size_t n) {
+    constexpr std::size_t budget = std::size_t{1} << 24, floor = 256;
+    return std::clamp<std::size_t>(budget / std::max<std::size_t>(n, 1), floor, max_candidates);
+}
 /// Most edge-to-face entries one sharp-edge-bounded walk (reach_faces) scans.
 inline constexpr std::size_t max_walk = 16 * max_candidates;
 
@@ -320,12 +331,12 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
                 }
             }
         }, 1);
-    } else build_neighbourhoods(nf, nb, progress, from, q2, [&](std::size_t t, auto&& append) {
+    } else build_neighbourhoods(nf, nb, progress, from, q2, [&, cap = max_listed(nf)](std::size_t t, auto&& append) {
         if (g.area[t] == 0) return;
         thread_local std::vector<std::uint32_t> found;
         thread_local std::vector<Scalar> dist2;
         thread_local std::vector<float> weight;
-        grid.gather(g.centroid[t], h, found, dist2, max_candidates);
+        grid.gather(g.centroid[t], h, found, dist2, cap);
         std::size_t n = found.size();
         weight.resize(n);
         if (barriers && (*near)[t]) {  // keep the faces reached without crossing a sharp edge
@@ -642,11 +653,11 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     // but moved Twelve0.5Impulsive from 7.99° to 8.10°.
     Neighbourhoods& around = ws.vertex_lists;
     if (!keep_vertex_sets) {
-        build_neighbourhoods(nv, around, progress, mid, mid, [&](std::size_t i, auto&& append) {
+        build_neighbourhoods(nv, around, progress, mid, mid, [&, cap = max_listed(nv)](std::size_t i, auto&& append) {
             if (fixed[i] || !has_face[i]) return;
             thread_local std::vector<std::uint32_t> found;
             thread_local std::vector<Scalar> dist2;
-            grid.gather(V[i], h, found, dist2, max_candidates);
+            grid.gather(V[i], h, found, dist2, cap);
             std::size_t n = found.size();
             if (barriers && near_vertex[i]) {  // keep the faces reached without crossing a sharp edge
                 const Reach reached = reach_faces(*barriers, g.centroid, barriers->topo->vertex_faces(i), V[i], h);
