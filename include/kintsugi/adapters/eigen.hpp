@@ -21,6 +21,15 @@
 
 namespace kintsugi {
 
+namespace detail {
+/// Row i of an n x 3 matrix as a Vec3 (any scalar type).
+template <class Mat>
+[[nodiscard]] Vec3 row_vec3(const Mat& A, std::size_t i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    return Vec3(static_cast<Scalar>(A(r, 0)), static_cast<Scalar>(A(r, 1)), static_cast<Scalar>(A(r, 2)));
+}
+}  // namespace detail
+
 /// Non-owning V/F view. `MatV` may be const (read-only view).
 template <class MatV, class MatF>
 struct EigenMeshView {
@@ -45,11 +54,7 @@ struct mesh_traits<EigenMeshView<MatV, MatF>> {
     using View = EigenMeshView<MatV, MatF>;
     static std::size_t num_vertices(const View& m) { return static_cast<std::size_t>(m.V->rows()); }
     static std::size_t num_faces(const View& m) { return static_cast<std::size_t>(m.F->rows()); }
-    static Vec3 position(const View& m, Index v) {
-        const auto r = static_cast<Eigen::Index>(v);
-        return Vec3(static_cast<Scalar>((*m.V)(r, 0)), static_cast<Scalar>((*m.V)(r, 1)),
-                    static_cast<Scalar>((*m.V)(r, 2)));
-    }
+    static Vec3 position(const View& m, Index v) { return detail::row_vec3(*m.V, v); }
     static Face face(const View& m, Index f) {
         const auto r = static_cast<Eigen::Index>(f);
         return {static_cast<Index>((*m.F)(r, 0)), static_cast<Index>((*m.F)(r, 1)), static_cast<Index>((*m.F)(r, 2))};
@@ -90,16 +95,8 @@ template <class MatP, class MatN>
 struct point_set_traits<EigenPointsView<MatP, MatN>> {
     using View = EigenPointsView<MatP, MatN>;
     static std::size_t size(const View& v) { return static_cast<std::size_t>(v.P->rows()); }
-    static Vec3 point(const View& v, std::size_t i) {
-        const auto r = static_cast<Eigen::Index>(i);
-        return Vec3(static_cast<Scalar>((*v.P)(r, 0)), static_cast<Scalar>((*v.P)(r, 1)),
-                    static_cast<Scalar>((*v.P)(r, 2)));
-    }
-    static Vec3 normal(const View& v, std::size_t i) {
-        const auto r = static_cast<Eigen::Index>(i);
-        return Vec3(static_cast<Scalar>((*v.N)(r, 0)), static_cast<Scalar>((*v.N)(r, 1)),
-                    static_cast<Scalar>((*v.N)(r, 2)));
-    }
+    static Vec3 point(const View& v, std::size_t i) { return detail::row_vec3(*v.P, i); }
+    static Vec3 normal(const View& v, std::size_t i) { return detail::row_vec3(*v.N, i); }
     static bool has_normals(const View& v) {
         return v.N != nullptr && v.N->rows() == v.P->rows() && v.N->cols() == 3 && v.P->rows() > 0;
     }

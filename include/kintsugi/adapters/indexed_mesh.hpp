@@ -99,15 +99,10 @@ template <TriangleMesh M>
 /// Copies any PointSet into a PointCloud (positions, normals and radii when present).
 template <PointSet P>
 [[nodiscard]] PointCloud to_point_cloud(const P& p) {
-    if constexpr (std::is_same_v<P, PointCloud>) {
+    if constexpr (std::is_same_v<P, PointCloud>)
         return p;
-    } else {
-        PointCloud out;
-        out.points = kintsugi::gather_points(p);
-        out.normals = kintsugi::gather_normals(p);
-        out.radii = kintsugi::gather_radii(p);
-        return out;
-    }
+    else
+        return {kintsugi::gather_points(p), kintsugi::gather_normals(p), kintsugi::gather_radii(p)};
 }
 
 /// Replaces the contents of any TopologyMutableMesh with `src`.

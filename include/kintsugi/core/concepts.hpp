@@ -116,39 +116,40 @@ void append_surfel(T& t, const Vec3& p, const Vec3& n, Scalar r) {
     point_set_traits<T>::push_back(t, p, n, r);
 }
 
+namespace detail {
+/// {at(0), ..., at(n - 1)}.
+template <class V, class At>
+[[nodiscard]] std::vector<V> gather_each(std::size_t n, At&& at) {
+    std::vector<V> out(n);
+    for (std::size_t i = 0; i < n; ++i) out[i] = at(i);
+    return out;
+}
+}  // namespace detail
+
 /// Copies the positions into a contiguous vector (the internal layout).
 template <PointSet T>
 [[nodiscard]] std::vector<Vec3> gather_points(const T& t) {
-    const std::size_t n = kintsugi::num_points(t);
-    std::vector<Vec3> out(n);
-    for (std::size_t i = 0; i < n; ++i) out[i] = kintsugi::point_at(t, i);
-    return out;
+    return detail::gather_each<Vec3>(kintsugi::num_points(t), [&](std::size_t i) { return kintsugi::point_at(t, i); });
 }
 
 /// Copies the normals into a contiguous vector; empty when t has none.
 template <PointSet T>
 [[nodiscard]] std::vector<Vec3> gather_normals(const T& t) {
-    std::vector<Vec3> out;
-    if constexpr (OrientedPointSet<T>) {
-        if (!kintsugi::has_normals(t)) return out;
-        const std::size_t n = kintsugi::num_points(t);
-        out.resize(n);
-        for (std::size_t i = 0; i < n; ++i) out[i] = kintsugi::normal_at(t, i);
-    }
-    return out;
+    if constexpr (OrientedPointSet<T>)
+        if (kintsugi::has_normals(t))
+            return detail::gather_each<Vec3>(kintsugi::num_points(t),
+                                             [&](std::size_t i) { return kintsugi::normal_at(t, i); });
+    return {};
 }
 
 /// Copies the radii into a contiguous vector; empty when t has none.
 template <PointSet T>
 [[nodiscard]] std::vector<Scalar> gather_radii(const T& t) {
-    std::vector<Scalar> out;
-    if constexpr (SurfelSet<T>) {
-        if (!kintsugi::has_radii(t)) return out;
-        const std::size_t n = kintsugi::num_points(t);
-        out.resize(n);
-        for (std::size_t i = 0; i < n; ++i) out[i] = kintsugi::radius_at(t, i);
-    }
-    return out;
+    if constexpr (SurfelSet<T>)
+        if (kintsugi::has_radii(t))
+            return detail::gather_each<Scalar>(kintsugi::num_points(t),
+                                               [&](std::size_t i) { return kintsugi::radius_at(t, i); });
+    return {};
 }
 
 // ---------------------------------------------------------------- meshes

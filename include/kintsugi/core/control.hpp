@@ -122,5 +122,26 @@ private:
     std::vector<StageTiming> timings_;
 };
 
+/// The result of a cancelled run: `Result{}` with status Status::cancelled.
+template <class Result>
+[[nodiscard]] Result cancelled_result() {
+    Result r{};
+    r.status = Status::cancelled;
+    return r;
+}
+
+/// Runs `body(progress)`, `progress` reporting to `control`, and returns its result; when the
+/// run is cancelled inside (cancelled_exception), returns `Result{}` with status cancelled.
+/// The one place where an algorithm's cancellation becomes its Status.
+template <class Result, class Body>
+Result run_cancellable(const RunControl& control, Body&& body) {
+    Progress progress(control);
+    try {
+        return std::forward<Body>(body)(progress);
+    } catch (const cancelled_exception&) {
+        return cancelled_result<Result>();
+    }
+}
+
 }  // namespace detail
 }  // namespace kintsugi

@@ -12,9 +12,13 @@
 /// File names and file content quoted in a message are escaped (detail::printable), so
 /// that a message is one line of printable ASCII whatever the name or the bytes.
 
+#include <kintsugi/core/types.hpp>
+
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace kintsugi {
 
@@ -62,4 +66,24 @@ private:
     std::string path_;
 };
 
+namespace detail {
+
+/// Throws invalid_input "<prefix><name> = <value> must lie in [0, 1]<tail>" unless
+/// 0 <= value <= 1 (NaN fails): the one check of a fraction parameter.
+inline void check_fraction(const std::string& prefix, const char* name, double value, const std::string& tail = {}) {
+    if (!(value >= 0 && value <= 1))
+        throw invalid_input(prefix + name + " = " + std::to_string(value) + " must lie in [0, 1]" + tail);
+}
+
+/// Throws invalid_input "<prefix><i> has a NaN or infinite coordinate<tail>" for the
+/// first i whose pts[i] has one: the one finiteness check of an input's positions
+/// (prefix e.g. "kintsugi::estimate_normals: point ", tail e.g. "; remove it first").
+inline void check_finite_points(const std::vector<Vec3>& pts, const std::string& prefix,
+                                const char* tail = "; remove it first") {
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        if (!pts[i].allFinite())
+            throw invalid_input(prefix + std::to_string(i) + " has a NaN or infinite coordinate" + tail);
+}
+
+}  // namespace detail
 }  // namespace kintsugi

@@ -21,6 +21,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 #define KINTSUGI_PARALLEL_TBB 1
 #endif
@@ -58,6 +59,21 @@ private:
     std::unique_ptr<tbb::global_control> control_;
 #endif
 };
+
+namespace detail {
+/// Sorts v (in parallel when TBB is on and v is large). Only for element types whose
+/// order is total and unique (e.g. (key, index) pairs), so that the result is one.
+template <class T>
+void sort_maybe_parallel(std::vector<T>& v) {
+#ifdef KINTSUGI_PARALLEL_TBB
+    if (v.size() > 100000) {
+        tbb::parallel_sort(v.begin(), v.end());
+        return;
+    }
+#endif
+    std::sort(v.begin(), v.end());
+}
+}  // namespace detail
 
 /// Calls `body(i)` for every i in [begin, end), possibly in parallel. `grain` is
 /// the smallest chunk worth a task. Bodies must only write state owned by i.

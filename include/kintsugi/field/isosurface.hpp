@@ -314,9 +314,8 @@ IsosurfaceResult extract_isosurface(const F& field, const IsoRegion& region, M& 
     const detail::IsoLattice L{grid.cells[0], grid.cells[1], grid.cells[2]};
     const auto& tets = detail::kuhn_tets();
     const auto& edges = detail::kuhn_edges();
-    IsosurfaceResult res;
-    detail::Progress progress(params.control);
-    try {
+    return detail::run_cancellable<IsosurfaceResult>(params.control, [&](detail::Progress& progress) {
+        IsosurfaceResult res;
         // Stage 1: the cubes, by waves from the seeds; every cube around a crossed
         // lattice edge joins the next wave.
         progress.stage("isosurface_cells", 0.0, 0.5);
@@ -472,12 +471,8 @@ IsosurfaceResult extract_isosurface(const F& field, const IsoRegion& region, M& 
         assign_mesh(out, mesh);
         res.timings = progress.finish();
         res.status = Status::ok;
-    } catch (const detail::cancelled_exception&) {
-        IsosurfaceResult c;
-        c.status = Status::cancelled;
-        return c;
-    }
-    return res;
+        return res;
+    });
 }
 
 }  // namespace kintsugi

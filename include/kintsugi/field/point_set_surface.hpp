@@ -347,10 +347,7 @@ template <OrientedPointSet P, PointSet Q>
                                                                             const PointSetSurfaceParams& params = {}) {
     constexpr const char* fn = "kintsugi::project_onto_point_set_surface";
     const std::vector<Vec3> q = gather_points(queries);
-    for (std::size_t i = 0; i < q.size(); ++i)
-        if (!q[i].allFinite())
-            throw invalid_input(std::string(fn) + ": query point " + std::to_string(i) +
-                                " has a NaN or infinite coordinate; remove it first");
+    detail::check_finite_points(q, std::string(fn) + ": query point ");
     PointSetSurfaceProjectionResult result;
     detail::Progress progress(params.control);
     try {

@@ -281,17 +281,12 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
 ///         params.control; labels empty.
 [[nodiscard]] inline StCutResult st_min_cut(const StCutGraph& graph, const StCutParams& params = {}) {
     detail::st_cut_validate(graph);
-    detail::Progress progress(params.control);
-    try {
+    return detail::run_cancellable<StCutResult>(params.control, [&](detail::Progress& progress) {
         progress.stage("max_flow", 0.0, 1.0);
         StCutResult out = detail::st_min_cut_impl(graph, progress);
         out.timings = progress.finish();
         return out;
-    } catch (const detail::cancelled_exception&) {
-        StCutResult out;
-        out.status = Status::cancelled;
-        return out;
-    }
+    });
 }
 
 }  // namespace kintsugi

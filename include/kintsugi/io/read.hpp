@@ -67,12 +67,8 @@ inline RawGeometry read_any(const std::filesystem::path& path, const ReadOptions
 [[nodiscard]] inline IndexedMesh read_mesh(const std::filesystem::path& path, const ReadOptions& options = {},
                                            ReadInfo* info = nullptr) {
     detail::io::RawGeometry g = detail::io::read_any(path, options);
-    IndexedMesh m;
-    m.vertices = std::move(g.vertices);
-    m.faces = std::move(g.faces);
-    m.normals = std::move(g.normals);
     if (info) *info = std::move(g.info);
-    return m;
+    return {.vertices = std::move(g.vertices), .faces = std::move(g.faces), .normals = std::move(g.normals)};
 }
 
 /// @brief Reads a point cloud; a mesh file gives its vertices (and vertex normals).
@@ -82,12 +78,8 @@ inline RawGeometry read_any(const std::filesystem::path& path, const ReadOptions
 /// @throws io_error naming the file and what is wrong.
 [[nodiscard]] inline PointCloud read_point_cloud(const std::filesystem::path& path, ReadInfo* info = nullptr) {
     detail::io::RawGeometry g = detail::io::read_any(path, ReadOptions{});
-    PointCloud c;
-    c.points = std::move(g.vertices);
-    c.normals = std::move(g.normals);
-    c.radii = std::move(g.radii);
     if (info) *info = std::move(g.info);
-    return c;
+    return {.points = std::move(g.vertices), .normals = std::move(g.normals), .radii = std::move(g.radii)};
 }
 
 /// @brief Reads a triangle mesh into any TopologyMutableMesh (cleared first).

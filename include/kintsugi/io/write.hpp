@@ -184,47 +184,45 @@ inline void check_extension(const std::filesystem::path& path, const std::string
                                           "; kintsugi writes " + list);
 }
 
-inline void write_indexed_mesh(const std::filesystem::path& path, const IndexedMesh& m, const WriteOptions& options) {
+/// `x` itself when it is already an `Internal` (no copy), else copy(x).
+template <class Internal, class T, class Copy>
+decltype(auto) as_internal(const T& x, Copy&& copy) {
+    if constexpr (std::is_same_v<T, Internal>)
+        return (x);
+    else
+        return copy(x);
+}
+
+/// Writes `d` in the format of `path`'s (checked) extension: PLY with everything `d` holds,
+/// OFF with normals and faces, OBJ with normals, faces and edges, XYZ/PWN with normals; then commits it or leaves it in
+/// the options' batch.
+inline void write_by_extension(const std::filesystem::path& path, const PlyWriteData& d, const WriteOptions& options) {
     const std::string ext = lower_extension(path);
-    check_extension(path, "mesh");
-    check_mesh_for_write(m, "kintsugi::write_mesh");
     AtomicOutputFile out(path, write_stop(options));
-    if (ext == ".ply") {
-        PlyWriteData d;
-        d.vertices = &m.vertices;
-        d.normals = &m.normals;
-        d.faces = &m.faces;
+    if (ext == ".ply")
         write_ply(out, d, options.binary, options.big_endian);
-    } else if (ext == ".off") {
-        write_off(out, m.vertices, &m.normals, &m.faces);
-    } else {
-        write_obj(out, m.vertices, &m.normals, &m.faces);
-    }
+    else if (ext == ".off")
+        write_off(out, *d.vertices, d.normals, d.faces);
+    else if (ext == ".obj")
+        write_obj(out, *d.vertices, d.normals, d.faces, d.edges);
+    else
+        write_xyz(out, *d.vertices, d.normals);
     finish_output(out, options);
 }
 
+inline void write_indexed_mesh(const std::filesystem::path& path, const IndexedMesh& m, const WriteOptions& options) {
+    check_extension(path, "mesh");
+    check_mesh_for_write(m, "kintsugi::write_mesh");
+    write_by_extension(path, {.vertices = &m.vertices, .normals = &m.normals, .faces = &m.faces}, options);
+}
+
 inline void write_cloud(const std::filesystem::path& path, const PointCloud& c, const WriteOptions& options) {
-    const std::string ext = lower_extension(path);
     check_extension(path, "point cloud");
     check_cloud_for_write(c, "kintsugi::write_point_cloud");
-    if (ext == ".pwn" && c.normals.empty() && !c.points.empty())
+    if (lower_extension(path) == ".pwn" && c.normals.empty() && !c.points.empty())
         throw invalid_input("kintsugi::write_point_cloud: a .pwn file needs normals and the point set has none; "
                             "estimate them first (kintsugi::estimate_normals) or write .xyz");
-    AtomicOutputFile out(path, write_stop(options));
-    if (ext == ".ply") {
-        PlyWriteData d;
-        d.vertices = &c.points;
-        d.normals = &c.normals;
-        d.radii = &c.radii;
-        write_ply(out, d, options.binary, options.big_endian);
-    } else if (ext == ".off") {
-        write_off(out, c.points, &c.normals, nullptr);
-    } else if (ext == ".obj") {
-        write_obj(out, c.points, &c.normals, nullptr);
-    } else {
-        write_xyz(out, c.points, &c.normals);
-    }
-    finish_output(out, options);
+    write_by_extension(path, {.vertices = &c.points, .normals = &c.normals, .radii = &c.radii}, options);
 }
 
 }  // namespace detail::io
@@ -241,11 +239,7 @@ inline void write_cloud(const std::filesystem::path& path, const PointCloud& c, 
 ///         or temporary file is left behind.
 template <TriangleMesh M>
 void write_mesh(const std::filesystem::path& path, const M& mesh, const WriteOptions& options = {}) {
-    if constexpr (std::is_same_v<M, IndexedMesh>) {
-        detail::io::write_indexed_mesh(path, mesh, options);
-    } else {
-        detail::io::write_indexed_mesh(path, to_indexed_mesh(mesh), options);
-    }
+    detail::io::write_indexed_mesh(path, detail::io::as_internal<IndexedMesh>(mesh, to_indexed_mesh<M>), options);
 }
 
 /// @brief Writes a point cloud.
@@ -262,11 +256,7 @@ void write_mesh(const std::filesystem::path& path, const M& mesh, const WriteOpt
 ///         No partial or temporary file is left behind.
 template <PointSet P>
 void write_point_cloud(const std::filesystem::path& path, const P& points, const WriteOptions& options = {}) {
-    if constexpr (std::is_same_v<P, PointCloud>) {
-        detail::io::write_cloud(path, points, options);
-    } else {
-        detail::io::write_cloud(path, to_point_cloud(points), options);
-    }
+    detail::io::write_cloud(path, detail::io::as_internal<PointCloud>(points, to_point_cloud<P>), options);
 }
 
 /// @brief Writes polylines (curves, e.g. boundary loops) as points + edges.
@@ -279,7 +269,6 @@ void write_point_cloud(const std::filesystem::path& path, const P& points, const
 ///         unsupported extension or a write failure.
 inline void write_polylines(const std::filesystem::path& path, const std::vector<Vec3>& points,
                             const std::vector<std::array<Index, 2>>& edges, const WriteOptions& options = {}) {
-    const std::string ext = detail::io::lower_extension(path);
     detail::io::check_extension(path, "polylines");
     detail::io::check_finite_for_write(points, "kintsugi::write_polylines", "point");
     for (std::size_t e = 0; e < edges.size(); ++e)
@@ -288,16 +277,7 @@ inline void write_polylines(const std::filesystem::path& path, const std::vector
                 throw invalid_input("kintsugi::write_polylines: edge " + std::to_string(e) + " uses point " +
                                     std::to_string(v) + ", out of range (there are " +
                                     std::to_string(points.size()) + " points)");
-    detail::io::AtomicOutputFile out(path, detail::io::write_stop(options));
-    if (ext == ".ply") {
-        detail::io::PlyWriteData d;
-        d.vertices = &points;
-        d.edges = &edges;
-        detail::io::write_ply(out, d, options.binary, options.big_endian);
-    } else {
-        detail::io::write_obj(out, points, nullptr, nullptr, &edges);
-    }
-    detail::io::finish_output(out, options);
+    detail::io::write_by_extension(path, {.vertices = &points, .edges = &edges}, options);
 }
 
 /// What an output file will hold, for check_writable().

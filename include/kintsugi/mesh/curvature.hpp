@@ -90,10 +90,7 @@ inline void validate(const char* fn, const std::vector<Vec3>& pts, const Curvatu
                             std::to_string(need) + ", " + std::to_string(pts.size()) +
                             "] (a degree-" + std::to_string(p.degree) + " jet needs " + std::to_string(need) +
                             " points, and there are " + std::to_string(pts.size()) + ")");
-    for (std::size_t i = 0; i < pts.size(); ++i)
-        if (!pts[i].allFinite())
-            throw invalid_input(std::string(fn) + ": " + (std::string(what) == "mesh" ? "vertex " : "point ") +
-                                std::to_string(i) + " has a NaN or infinite coordinate; remove it first");
+    check_finite_points(pts, std::string(fn) + ": " + (std::string(what) == "mesh" ? "vertex " : "point "));
 }
 
 inline PrincipalCurvature to_principal(const JetFit& j) {
@@ -212,10 +209,7 @@ template <PointSet P, PointSet Q>
     std::vector<Vec3> pts = gather_points(samples);
     detail::curvature::validate(fn, pts, params, "point set");
     const std::vector<Vec3> q = gather_points(queries);
-    for (std::size_t i = 0; i < q.size(); ++i)
-        if (!q[i].allFinite())
-            throw invalid_input(std::string(fn) + ": query point " + std::to_string(i) +
-                                " has a NaN or infinite coordinate; remove it first");
+    detail::check_finite_points(q, std::string(fn) + ": query point ");
     return detail::curvature::knn_fits(std::move(pts), &q, gather_normals(samples), params);
 }
 

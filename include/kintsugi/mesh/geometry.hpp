@@ -13,6 +13,7 @@
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
+#include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
@@ -21,6 +22,7 @@
 #include <cmath>
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace kintsugi {
@@ -143,6 +145,30 @@ inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
     return out;
 }
 
+namespace detail {
+/// Mean length of the unique edges of `topo` over positions `V`, summed in fixed chunks
+/// (the same whatever the thread count); an edge of a face with a repeated vertex index
+/// (a self edge) counts with length 0 when `self_edges`, else not at all. 0 without edges.
+inline Scalar mean_edge_length(const std::vector<Vec3>& V, const MeshTopology& topo, bool self_edges) {
+    const auto& E = topo.edges();
+    using Sum = std::pair<Scalar, std::size_t>;
+    const Sum sum = parallel_reduce(
+        0, E.size(), Sum{0, 0},
+        [&](std::size_t first, std::size_t last, Sum acc) {
+            for (std::size_t e = first; e < last; ++e)
+                if (E[e][0] != E[e][1]) {
+                    acc.first += (V[E[e][0]] - V[E[e][1]]).norm();
+                    ++acc.second;
+                } else if (self_edges) {
+                    ++acc.second;
+                }
+            return acc;
+        },
+        [](Sum x, Sum y) { return Sum{x.first + y.first, x.second + y.second}; });
+    return sum.second ? sum.first / static_cast<Scalar>(sum.second) : Scalar(0);
+}
+}  // namespace detail
+
 /// @brief Mean length of the mesh's unique undirected edges (each counted once), in
 /// mesh units; 0 for a mesh without faces. Self edges of faces with a repeated vertex
 /// index count with length 0.
@@ -151,13 +177,13 @@ inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
     detail::check_face_indices(m, "kintsugi::mean_edge_length");
     if (m.faces.empty()) return 0;
     const MeshTopology topo(m.vertices.size(), m.faces);
-    // Any magnitude: lengths of the halved coordinates (a difference of two near ±DBL_MAX
-    // overflows), scaled by a power of two when squares would leave double's range.
+    // Any magnitude: the lengths in a frame scaled by a power of two, where neither a
+    // difference nor a square leaves double's range.
     const detail::ScaleFrame frame = detail::scale_frame(m.vertices);
-    Scalar sum = 0;
-    for (const auto& e : topo.edges())
-        sum += (frame.to_local(m.vertices[e[0]]) - frame.to_local(m.vertices[e[1]])).norm();
-    return frame.to_world(sum / static_cast<Scalar>(topo.num_edges()));
+    if (frame.identity()) return detail::mean_edge_length(m.vertices, topo, /*self_edges=*/true);
+    std::vector<Vec3> local = m.vertices;
+    frame.to_local(local);
+    return frame.to_world(detail::mean_edge_length(local, topo, /*self_edges=*/true));
 }
 
 /// @brief Axis-aligned bounding box of a set of points (empty box for no points).

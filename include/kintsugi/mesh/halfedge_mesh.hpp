@@ -288,9 +288,7 @@ inline HalfedgeMesh HalfedgeMesh::from_faces(std::vector<Vec3> positions, const 
     if (3 * nf >= static_cast<std::size_t>(nil) || nv >= static_cast<std::size_t>(nil))
         throw invalid_input(fn + "the mesh has " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
                             " faces; at most 2^32-2 halfedges and vertices are supported; split the mesh");
-    for (std::size_t v = 0; v < nv; ++v)
-        if (!positions[v].allFinite())
-            throw invalid_input(fn + "vertex " + std::to_string(v) + " has a NaN or infinite coordinate; remove it");
+    detail::check_finite_points(positions, fn + "vertex ", "; remove it");
     for (std::size_t f = 0; f < nf; ++f) {
         const Face& t = faces[f];
         for (int k = 0; k < 3; ++k)
@@ -498,28 +496,25 @@ inline bool HalfedgeMesh::flip(Index h) {
 
 inline Index HalfedgeMesh::split(Index h, Scalar t) {
     const Index g = twin(h);
-    const Index a = source(h), b = target(h), c = opposite(h);
+    const Index a = source(h), b = target(h);
     const Index m = new_vertex();
     interpolate(m, a, b, t);
-    // Face of h: (a, b, c) -> (a, m, c) + (m, b, c).
-    const Index h1 = next(h);
-    const Index t1 = twin(h1);
-    corner_[h1] = narrow(m);
-    const Index f1 = new_face(m, b, c);
-    set_twin(3 * f1 + 1, t1);
-    set_twin(h1, 3 * f1 + 2);
-    if (v_out_[b] == h1) v_out_[b] = narrow(3 * f1 + 1);
+    // The face of e, (from, to, o), becomes (from, m, o) + the new face (m, to, o).
+    auto cut = [&](Index e, Index to) {
+        const Index o = opposite(e);
+        const Index e1 = next(e);
+        const Index te = twin(e1);
+        corner_[e1] = narrow(m);
+        const Index f = new_face(m, to, o);
+        set_twin(3 * f + 1, te);
+        set_twin(e1, 3 * f + 2);
+        if (v_out_[to] == e1) v_out_[to] = narrow(3 * f + 1);
+        return f;
+    };
+    const Index f1 = cut(h, b);  // (a, b, c) -> (a, m, c) + (m, b, c)
     v_out_[m] = narrow(3 * f1);
     if (g == invalid) return m;
-    // Face of g: (b, a, d) -> (b, m, d) + (m, a, d).
-    const Index d = opposite(g);
-    const Index g1 = next(g);
-    const Index t2 = twin(g1);
-    corner_[g1] = narrow(m);
-    const Index f2 = new_face(m, a, d);
-    set_twin(3 * f2 + 1, t2);
-    set_twin(g1, 3 * f2 + 2);
-    if (v_out_[a] == g1) v_out_[a] = narrow(3 * f2 + 1);
+    const Index f2 = cut(g, a);  // (b, a, d) -> (b, m, d) + (m, a, d)
     set_twin(h, 3 * f2);  // a -> m with m -> a
     set_twin(3 * f1, g);  // m -> b with b -> m
     return m;

@@ -298,9 +298,7 @@ inline void marching_tetrahedra_validate(const std::vector<Vec3>& vertices, cons
         throw invalid_input(fn + "min_edge_fraction must lie in (0, 0.5)");
     if (!(params.same_sign_fraction >= params.min_edge_fraction && params.same_sign_fraction <= 0.5))
         throw invalid_input(fn + "same_sign_fraction must lie in [min_edge_fraction, 0.5]");
-    for (std::size_t i = 0; i < n; ++i)
-        if (!vertices[i].allFinite())
-            throw invalid_input(fn + "vertex " + std::to_string(i) + " has a NaN or infinite coordinate");
+    detail::check_finite_points(vertices, fn + "vertex ", "");
     for (std::size_t i = 0; i < f.size(); ++i)
         if (!std::isfinite(f[i]))
             throw invalid_input(fn + "f[" + std::to_string(i) + "] is NaN or infinite; give finite values");
@@ -353,17 +351,12 @@ inline void marching_tetrahedra_validate(const std::vector<Vec3>& vertices, cons
                                                                  const std::vector<Scalar>& f = {},
                                                                  const MarchingTetrahedraParams& params = {}) {
     detail::marching_tetrahedra_validate(vertices, tets, inside, f, params);
-    detail::Progress progress(params.control);
-    try {
+    return detail::run_cancellable<MarchingTetrahedraResult>(params.control, [&](detail::Progress& progress) {
         progress.stage("marching_tetrahedra", 0.0, 1.0);
         MarchingTetrahedraResult out = detail::marching_tetrahedra_impl(vertices, tets, inside, f, params, progress);
         out.timings = progress.finish();
         return out;
-    } catch (const detail::cancelled_exception&) {
-        MarchingTetrahedraResult out;
-        out.status = Status::cancelled;
-        return out;
-    }
+    });
 }
 
 }  // namespace kintsugi

@@ -228,6 +228,15 @@ inline void report_to_world(DistanceReport& r, const ScaleFrame& frame) {
     }
 }
 
+/// An empty report against reference `b`: its diagonal (the unit of the F-score threshold) set.
+inline DistanceReport report_against(const IndexedMesh& b) {
+    DistanceReport r;
+    BoundingBox box;
+    for (const Vec3& p : b.vertices) box.extend(p);
+    r.diagonal = box.diagonal();
+    return r;
+}
+
 inline void finish_report(DistanceReport& r) {
     r.chamfer = (r.a_to_b.mean + r.b_to_a.mean) / 2;
     const double p = r.a_to_b.fscore_part, q = r.b_to_a.fscore_part;
@@ -236,12 +245,8 @@ inline void finish_report(DistanceReport& r) {
 
 /// compare() on the internal layout. @pre a and b validated.
 inline DistanceReport compare_meshes(const IndexedMesh& a, const IndexedMesh& b, const DistanceParams& params) {
-    DistanceReport r;
-    Progress progress(params.control);
-    try {
-        BoundingBox box;
-        for (const Vec3& p : b.vertices) box.extend(p);
-        r.diagonal = box.diagonal();
+    return run_cancellable<DistanceReport>(params.control, [&](Progress& progress) {
+        DistanceReport r = report_against(b);
         const double tau = params.fscore_threshold * r.diagonal;
 
         progress.stage("sample", 0.0, 0.05);
@@ -277,23 +282,15 @@ inline DistanceReport compare_meshes(const IndexedMesh& a, const IndexedMesh& b,
         r.normal_consistency = (nab / static_cast<double>(r.samples_a) + nba / static_cast<double>(r.samples_b)) / 2;
         finish_report(r);
         r.timings = progress.finish();
-    } catch (const cancelled_exception&) {
-        DistanceReport c;
-        c.status = Status::cancelled;
-        return c;
-    }
-    return r;
+        return r;
+    });
 }
 
 /// compare_points() on the internal layout. @pre validated; normals empty or one per point.
 inline DistanceReport compare_points_impl(const std::vector<Vec3>& pts, const std::vector<Vec3>& normals,
                                           const IndexedMesh& b, const DistanceParams& params) {
-    DistanceReport r;
-    Progress progress(params.control);
-    try {
-        BoundingBox box;
-        for (const Vec3& p : b.vertices) box.extend(p);
-        r.diagonal = box.diagonal();
+    return run_cancellable<DistanceReport>(params.control, [&](Progress& progress) {
+        DistanceReport r = report_against(b);
         const double tau = params.fscore_threshold * r.diagonal;
         const bool with_normals = !normals.empty();
 
@@ -349,12 +346,8 @@ inline DistanceReport compare_points_impl(const std::vector<Vec3>& pts, const st
         }
         finish_report(r);
         r.timings = progress.finish();
-    } catch (const cancelled_exception&) {
-        DistanceReport c;
-        c.status = Status::cancelled;
-        return c;
-    }
-    return r;
+        return r;
+    });
 }
 
 }  // namespace detail

@@ -208,25 +208,15 @@ inline void pu_graphcut_validate(const std::vector<Vec3>& pts, const std::vector
     if (!(p.k > 0) || !std::isfinite(p.k))
         throw invalid_input(fn + "k = " + std::to_string(p.k) +
                             " must be positive and finite; the paper uses 10 (5-15 work well)");
-    if (!(p.triangulation_weight_scale >= 0 && p.triangulation_weight_scale <= 1))
-        throw invalid_input(fn + "triangulation_weight_scale = " + std::to_string(p.triangulation_weight_scale) +
-                            " must lie in [0, 1]; 1 is the paper's regular triangulation, 0 (the default) "
-                            "keeps every support");
-    if (!(p.min_support_coherence >= 0 && p.min_support_coherence <= 1))
-        throw invalid_input(fn + "min_support_coherence = " + std::to_string(p.min_support_coherence) +
-                            " must lie in [0, 1]; the default is 0.8, 0 trusts any support with enough points");
-    if (!(p.untrusted_weight >= 0 && p.untrusted_weight <= 1))
-        throw invalid_input(fn + "untrusted_weight = " + std::to_string(p.untrusted_weight) +
-                            " must lie in [0, 1]; the default is 1e-3, 1 is the paper's field");
-    if (!(p.fill_radius_fraction >= 0 && p.fill_radius_fraction <= 1))
-        throw invalid_input(fn + "fill_radius_fraction = " + std::to_string(p.fill_radius_fraction) +
-                            " must lie in [0, 1]; the default is 0.75, 0 disables the fill");
-    if (!(p.part_gap_fraction >= 0 && p.part_gap_fraction <= 1))
-        throw invalid_input(fn + "part_gap_fraction = " + std::to_string(p.part_gap_fraction) +
-                            " must lie in [0, 1]; the default is 0.25, 0 reconstructs every point in one box");
-    if (!(p.min_part_fraction >= 0 && p.min_part_fraction <= 1))
-        throw invalid_input(fn + "min_part_fraction = " + std::to_string(p.min_part_fraction) +
-                            " must lie in [0, 1]; the default is 0.01");
+    check_fraction(fn, "triangulation_weight_scale", p.triangulation_weight_scale,
+                   "; 1 is the paper's regular triangulation, 0 (the default) keeps every support");
+    check_fraction(fn, "min_support_coherence", p.min_support_coherence,
+                   "; the default is 0.8, 0 trusts any support with enough points");
+    check_fraction(fn, "untrusted_weight", p.untrusted_weight, "; the default is 1e-3, 1 is the paper's field");
+    check_fraction(fn, "fill_radius_fraction", p.fill_radius_fraction, "; the default is 0.75, 0 disables the fill");
+    check_fraction(fn, "part_gap_fraction", p.part_gap_fraction,
+                   "; the default is 0.25, 0 reconstructs every point in one box");
+    check_fraction(fn, "min_part_fraction", p.min_part_fraction, "; the default is 0.01");
     // The checks of PUField::build that do not depend on the points' spread (that one
     // runs per part, in the part's frame: pu_graphcut_validate_part).
     pu_validate_input(pts, nrm, p.max_level, p.epsilon, fn, /*tiny_normals=*/true);
@@ -287,8 +277,7 @@ inline PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vector<Vec3
     const PUField& field = pu.field;
     const auto& sup = field.supports();
 
-    Progress progress(control);
-    try {
+    return run_cancellable<PUGraphcutResult>(control, [&](Progress& progress) {
         // Step 4: regular triangulation of the supports (weights (s r)²) plus an outer layer
         // of plain points on a box enclosing every support ball: never hidden (no ball
         // contains them), never hiding a support, labelled outside so the surface closes.
@@ -445,12 +434,8 @@ inline PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vector<Vec3
         auto t = progress.finish();
         res.timings.insert(res.timings.end(), t.begin(), t.end());
         res.status = Status::ok;
-    } catch (const cancelled_exception&) {
-        PUGraphcutResult c;
-        c.status = Status::cancelled;
-        return c;
-    }
-    return res;
+        return std::move(res);
+    });
 }
 
 /// The whole run: validation, the separated parts (part_gap_fraction), each
@@ -517,9 +502,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         const RunControl control = chosen.size() == 1 ? params.control : part_control(params.control, a, b, last);
         PUGraphcutResult r = pu_graphcut_part(std::move(pp), std::move(nn), params, control);
         if (r.status == Status::cancelled) {
-            PUGraphcutResult c;
-            c.status = Status::cancelled;
-            return c;
+            return cancelled_result<PUGraphcutResult>();
         }
         if (r.mesh.faces.empty()) {
             problem = fn + "the surface is empty: the labelling put none of the " + std::to_string(r.supports) +
@@ -542,20 +525,13 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
             res.mesh.faces.push_back(f);
         }
         ++res.parts;
-        res.octree_cells += r.octree_cells;
-        res.supports += r.supports;
-        res.hidden_supports += r.hidden_supports;
-        res.outer_vertices += r.outer_vertices;
-        res.tetrahedra += r.tetrahedra;
-        res.graph_nodes += r.graph_nodes;
-        res.graph_edges += r.graph_edges;
+        using R = PUGraphcutResult;
+        for (std::size_t R::*count :
+             {&R::octree_cells, &R::supports, &R::hidden_supports, &R::outer_vertices, &R::tetrahedra,
+              &R::graph_nodes, &R::graph_edges, &R::inside_vertices, &R::sign_disagreements, &R::same_sign_vertices,
+              &R::smoothed_vertices, &R::removed_regions, &R::filled_vertices})
+            res.*count += r.*count;
         res.cut_value += r.cut_value;
-        res.inside_vertices += r.inside_vertices;
-        res.sign_disagreements += r.sign_disagreements;
-        res.same_sign_vertices += r.same_sign_vertices;
-        res.smoothed_vertices += r.smoothed_vertices;
-        res.removed_regions += r.removed_regions;
-        res.filled_vertices += r.filled_vertices;
         for (const StageTiming& t : r.timings) {
             auto it = std::find_if(res.timings.begin(), res.timings.end(),
                                    [&](const StageTiming& u) { return u.stage == t.stage; });
@@ -571,9 +547,7 @@ inline PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vector<Vec3>
         throw invalid_input(problem);
     }
     if (chosen.size() > 1 && params.control.progress && !params.control.progress(ProgressEvent{"done", 1.0})) {
-        PUGraphcutResult c;
-        c.status = Status::cancelled;
-        return c;
+        return cancelled_result<PUGraphcutResult>();
     }
     res.status = Status::ok;
     return res;

@@ -272,7 +272,7 @@ inline void check_positive(const std::string& fn, const char* name, Scalar x) {
         throw invalid_input(fn + ": " + name + " = " + std::to_string(x) + " must be a positive finite number");
 }
 inline void check_unit(const std::string& fn, const char* name, Scalar x) {
-    if (!(x >= 0 && x <= 1)) throw invalid_input(fn + ": " + name + " = " + std::to_string(x) + " must lie in [0, 1]");
+    check_fraction(fn + ": ", name, x);
 }
 inline void check_count(const std::string& fn, const char* name, std::size_t n) {
     if (n > 10000) throw invalid_input(fn + ": " + name + " = " + std::to_string(n) + " must be at most 10000");
@@ -290,7 +290,7 @@ inline void check_detection(const std::string& fn, const SharpFeatureParams& p) 
 }
 
 inline Scalar checked_mean_edge(const char* fn, const std::vector<Vec3>& V, const MeshTopology& topo) {
-    const Scalar L = mean_edge_length(V, topo);
+    const Scalar L = detail::mean_edge_length(V, topo, /*self_edges=*/false);
     if (!(L > 0) || !std::isfinite(L))
         throw invalid_input(std::string(fn) + ": every edge has zero length; the mesh has no extent to smooth");
     return L;
@@ -372,11 +372,7 @@ inline std::size_t drop_duplicate_faces(std::vector<Face>& faces) {
         std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
         key[f] = {t, f};
     }, 4096);
-#ifdef KINTSUGI_PARALLEL_TBB
-    tbb::parallel_sort(key.begin(), key.end());  // unique (face, index) pairs: one result
-#else
-    std::sort(key.begin(), key.end());
-#endif
+    sort_maybe_parallel(key);  // unique (face, index) pairs: one result
     std::vector<unsigned char> repeat(nf, 0);
     std::size_t removed = 0;
     for (std::size_t k = 1; k < nf; ++k)

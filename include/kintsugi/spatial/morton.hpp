@@ -30,9 +30,6 @@
 #include <utility>
 #include <vector>
 
-#ifdef KINTSUGI_PARALLEL_TBB
-#include <tbb/parallel_sort.h>
-#endif
 
 namespace kintsugi {
 
@@ -109,20 +106,6 @@ private:
     Vec3 lo_ = Vec3::Zero(), extent_ = Vec3::Ones();
 };
 
-namespace detail {
-/// Sorts v (in parallel when TBB is on and v is large). Only for element types whose
-/// order is total and unique (e.g. (key, index) pairs), so that the result is one.
-template <class T>
-void sort_maybe_parallel(std::vector<T>& v) {
-#ifdef KINTSUGI_PARALLEL_TBB
-    if (v.size() > 100000) {
-        tbb::parallel_sort(v.begin(), v.end());
-        return;
-    }
-#endif
-    std::sort(v.begin(), v.end());
-}
-}  // namespace detail
 
 /// The indices 0..n-1 sorted by the Morton code of position_of(i) in `box`, ties by
 /// index (deterministic whatever the thread count).

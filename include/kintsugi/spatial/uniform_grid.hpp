@@ -39,9 +39,6 @@
 #include <xmmintrin.h>
 #endif
 
-#ifdef KINTSUGI_PARALLEL_TBB
-#include <tbb/parallel_sort.h>
-#endif
 
 #include <algorithm>
 #include <array>
@@ -117,11 +114,7 @@ public:
         parallel_for(0, n, [&](std::size_t i) {
             order[i] = {keep(i) ? key(coord(pts[i])) : empty_, static_cast<std::uint32_t>(i)};
         }, 4096);
-#ifdef KINTSUGI_PARALLEL_TBB
-        tbb::parallel_sort(order.begin(), order.end());  // unique (key, index) pairs: one result
-#else
-        std::sort(order.begin(), order.end());
-#endif
+        detail::sort_maybe_parallel(order);  // unique (key, index) pairs: one result
         order.resize(static_cast<std::size_t>(
             std::lower_bound(order.begin(), order.end(), std::pair<std::uint64_t, std::uint32_t>{empty_, 0}) -
             order.begin()));
@@ -432,10 +425,7 @@ private:
         if (pts.size() >= none_)
             throw invalid_input("kintsugi::UniformGrid: " + std::to_string(pts.size()) +
                                 " points; at most 2^32 - 2 are supported");
-        for (std::size_t i = 0; i < pts.size(); ++i)
-            if (!pts[i].allFinite())
-                throw invalid_input("kintsugi::UniformGrid: point " + std::to_string(i) +
-                                    " has a NaN or infinite coordinate; remove it first");
+        detail::check_finite_points(pts, "kintsugi::UniformGrid: point ");
     }
     /// gather() on the appended points not merged yet (double precision).
     void append_extras(const Vec3& c, Scalar h, std::vector<std::uint32_t>& index, std::vector<Scalar>& dist2) const {

@@ -165,6 +165,13 @@ struct RawGeometry {
     ReadInfo info;
 };
 
+/// An empty RawGeometry read from a file of `format` (ReadInfo::format).
+[[nodiscard]] inline RawGeometry raw_geometry(const char* format) {
+    RawGeometry g;
+    g.info.format = format;
+    return g;
+}
+
 /// Adds `raw` (escaped by printable()) to info.ignored_properties once. The list keeps at
 /// most 64 names, then ends with "..." (a garbage file must not make it quadratic).
 inline void note_ignored(ReadInfo& info, std::string_view raw) {
@@ -274,6 +281,22 @@ private:
     const char* nl_ = nullptr;  ///< next LF at or after p_ (end_ when none), null before the first search
     char comment_;
     std::size_t line_;
+};
+
+/// The lines of a text format (OBJ, OFF, XYZ, PWN): past a UTF-8 byte-order mark, '#'
+/// comments skipped, and its one form of syntax error.
+class TextLines : public LineReader {
+public:
+    TextLines(const FileBuffer& buf, const std::string& path, const char* format)
+        : LineReader(text_begin(buf, path), buf.end(), '#'), path_(path), format_(format) {}
+    /// "malformed <format> (line N): <what>", N the line last returned by next().
+    [[nodiscard]] io_error malformed(const std::string& what) const {
+        return io_error(path_, "malformed " + std::string(format_) + " (line " + std::to_string(line()) + "): " + what);
+    }
+
+private:
+    const std::string& path_;
+    const char* format_;
 };
 
 /// Splits one line into whitespace-separated tokens.

@@ -26,13 +26,9 @@
 namespace kintsugi::detail::io {
 
 inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, const std::string& path) {
-    RawGeometry g;
-    g.info.format = "obj";
-    LineReader lr(text_begin(buf, path), buf.end(), '#');
+    RawGeometry g = raw_geometry("obj");
+    TextLines lr(buf, path, "OBJ");
     std::string_view line, kw, s;
-    auto bad = [&](const std::string& what) {
-        return io_error(path, "malformed OBJ (line " + std::to_string(lr.line()) + "): " + what);
-    };
     std::vector<Vec3> vn;
     std::vector<std::pair<Index, Index>> corner_normals;  // (vertex, normal) as written by the faces
     std::vector<std::size_t> face_of_triangle, face_line;
@@ -41,12 +37,12 @@ inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, c
     // Resolves an OBJ index (1-based or negative = relative to the `count` defined so far).
     auto resolve = [&](std::string_view text, std::size_t count, const char* what) -> Index {
         long long i = 0;
-        if (!parse_integer(text, i)) throw bad(quote(text) + " is not a " + what + " index");
-        if (i == 0) throw bad(std::string(what) + " index 0 (OBJ indices start at 1)");
+        if (!parse_integer(text, i)) throw lr.malformed(quote(text) + " is not a " + what + " index");
+        if (i == 0) throw lr.malformed(std::string(what) + " index 0 (OBJ indices start at 1)");
         if (i < 0) {
             const unsigned long long back = 0ULL - static_cast<unsigned long long>(i);  // -i, also for LLONG_MIN
             if (back > count)
-                throw bad("relative " + std::string(what) + " index " + std::to_string(i) + " points before the first " +
+                throw lr.malformed("relative " + std::string(what) + " index " + std::to_string(i) + " points before the first " +
                           what + " (only " + std::to_string(count) + " defined so far)");
             return count - static_cast<std::size_t>(back);
         }
@@ -58,18 +54,18 @@ inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, c
         if (kw == "v" || kw == "vn") {
             double v[3];
             for (int k = 0; k < 3; ++k) {
-                if (!t.next(s)) throw bad("'" + std::string(kw) + "' needs 3 numbers");
-                if (!parse_double(s, v[k])) throw bad(quote(s) + " is not a number");
+                if (!t.next(s)) throw lr.malformed("'" + std::string(kw) + "' needs 3 numbers");
+                if (!parse_double(s, v[k])) throw lr.malformed(quote(s) + " is not a number");
             }
             const Vec3 p(v[0], v[1], v[2]);
             if (kw == "v") {
-                if (!all_finite(p)) throw bad(vertex_where(g.vertices.size(), 0) + " has a non-finite coordinate (NaN or Inf)");
+                if (!all_finite(p)) throw lr.malformed(vertex_where(g.vertices.size(), 0) + " has a non-finite coordinate (NaN or Inf)");
                 g.vertices.push_back(p);
                 int extra = 0;
                 while (t.next(s)) ++extra;
                 if (extra >= 3) note_ignored(g.info, "vertex colors");
             } else {
-                if (!all_finite(p)) throw bad("normal " + std::to_string(vn.size()) + " is not finite (NaN or Inf)");
+                if (!all_finite(p)) throw lr.malformed("normal " + std::to_string(vn.size()) + " is not finite (NaN or Inf)");
                 vn.push_back(p);
             }
         } else if (kw == "f") {
@@ -101,7 +97,7 @@ inline RawGeometry read_obj(const FileBuffer& buf, const ReadOptions& options, c
                 for (std::size_t k = 0; k < poly.size(); ++k)
                     if (poly_n[k] != static_cast<Index>(-1)) {
                         if (poly_n[k] >= vn.size())
-                            throw bad("normal index " + std::to_string(poly_n[k] + 1) + " is out of range: " +
+                            throw lr.malformed("normal index " + std::to_string(poly_n[k] + 1) + " is out of range: " +
                                       std::to_string(vn.size()) + " normals defined so far");
                         corner_normals.emplace_back(poly[k], poly_n[k]);
                     }
@@ -162,20 +158,14 @@ inline void write_obj(AtomicOutputFile& out, const std::vector<Vec3>& vertices, 
     const bool with_normals = normals && !normals->empty();
     out.write("# written by kintsugi\n");
     for (const Vec3& p : vertices) {
-        out.put('v');
-        for (int c = 0; c < 3; ++c) {
-            out.put(' ');
-            out.put_double(p[c]);
-        }
+        out.write("v ");
+        out.put_triple(p);
         out.put('\n');
     }
     if (with_normals)
         for (const Vec3& n : *normals) {
-            out.write("vn");
-            for (int c = 0; c < 3; ++c) {
-                out.put(' ');
-                out.put_double(n[c]);
-            }
+            out.write("vn ");
+            out.put_triple(n);
             out.put('\n');
         }
     if (faces)

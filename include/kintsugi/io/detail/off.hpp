@@ -12,6 +12,7 @@
 
 #include <kintsugi/io/detail/common.hpp>
 #include <kintsugi/io/detail/output_file.hpp>
+#include <kintsugi/io/detail/xyz.hpp>
 
 #include <string>
 #include <string_view>
@@ -20,13 +21,9 @@
 namespace kintsugi::detail::io {
 
 inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, const std::string& path) {
-    RawGeometry g;
-    g.info.format = "off";
-    LineReader lr(text_begin(buf, path), buf.end(), '#');
+    RawGeometry g = raw_geometry("off");
+    TextLines lr(buf, path, "OFF");
     std::string_view line;
-    auto bad = [&](const std::string& what) {
-        return io_error(path, "malformed OFF (line " + std::to_string(lr.line()) + "): " + what);
-    };
     if (!lr.next(line)) throw io_error(path, "not an OFF file: it holds only comments or blank lines");
     std::vector<std::string_view> tok;
     Tokens(line).all(tok);
@@ -50,18 +47,18 @@ inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, c
     }
     if (!prefix.empty()) {
         if (prefix.front() == '4' || prefix.front() == 'n')
-            throw bad(quote(kw) + ": only 3D OFF files are supported (no 4OFF or nOFF)");
-        throw bad("unknown header keyword " + quote(kw));
+            throw lr.malformed(quote(kw) + ": only 3D OFF files are supported (no 4OFF or nOFF)");
+        throw lr.malformed("unknown header keyword " + quote(kw));
     }
     std::vector<std::string_view> counts(tok.begin() + 1, tok.end());
-    if (!counts.empty() && counts[0] == "BINARY") throw bad("binary OFF is not supported; convert it to text OFF or PLY");
+    if (!counts.empty() && counts[0] == "BINARY") throw lr.malformed("binary OFF is not supported; convert it to text OFF or PLY");
     if (counts.empty()) {
         if (!lr.next(line)) throw io_error(path, "truncated OFF: the file ends before the vertex and face counts");
         Tokens(line).all(counts);
     }
     long long nv = -1, nf = -1;
     if (counts.size() < 2 || !parse_integer(counts[0], nv) || !parse_integer(counts[1], nf) || nv < 0 || nf < 0)
-        throw bad("expected the counts '<vertices> <faces> [<edges>]'");
+        throw lr.malformed("expected the counts '<vertices> <faces> [<edges>]'");
     // A vertex line takes at least "0 0 0\n", a face line "0\n" (a face of fewer than 3
     // vertices is reported by add_polygon(), not as a truncation).
     const std::size_t remaining = lr.remaining() + 1;
@@ -85,16 +82,16 @@ inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, c
         std::string_view s;
         for (std::size_t k = 0; k < need; ++k) {
             if (!t.next(s))
-                throw bad(vertex_where(i, 0) + " has " + std::to_string(k) + " numbers, expected at least " +
+                throw lr.malformed(vertex_where(i, 0) + " has " + std::to_string(k) + " numbers, expected at least " +
                           std::to_string(need));
-            if (!parse_double(s, v[k])) throw bad(quote(s) + " is not a number (" + vertex_where(i, 0) + ")");
+            if (!parse_double(s, v[k])) throw lr.malformed(quote(s) + " is not a number (" + vertex_where(i, 0) + ")");
         }
         const Vec3 p(v[0], v[1], v[2]);
-        if (!all_finite(p)) throw bad(vertex_where(i, 0) + " has a non-finite coordinate (NaN or Inf)");
+        if (!all_finite(p)) throw lr.malformed(vertex_where(i, 0) + " has a non-finite coordinate (NaN or Inf)");
         g.vertices.push_back(p);
         if (normals) {
             const Vec3 n(v[3], v[4], v[5]);
-            if (!all_finite(n)) throw bad(vertex_where(i, 0) + " has a non-finite normal (NaN or Inf)");
+            if (!all_finite(n)) throw lr.malformed(vertex_where(i, 0) + " has a non-finite normal (NaN or Inf)");
             g.normals.push_back(n);
         }
         if (t.next(s) && !colours && !texture) note_ignored(g.info, "extra vertex values");
@@ -109,17 +106,17 @@ inline RawGeometry read_off(const FileBuffer& buf, const ReadOptions& options, c
         std::string_view s;
         long long k = -1;
         t.next(s);
-        if (!parse_integer(s, k) || k < 0) throw bad(face_where(f, 0) + " does not start with a vertex count");
+        if (!parse_integer(s, k) || k < 0) throw lr.malformed(face_where(f, 0) + " does not start with a vertex count");
         const std::size_t declared = static_cast<std::size_t>(k);
         poly.clear();  // grows with the indices listed, not with the declared count
         while (poly.size() < declared && t.next(s)) {
             long long idx = -1;
-            if (!parse_integer(s, idx)) throw bad(quote(s) + " is not a vertex index (" + face_where(f, 0) + ")");
-            if (idx < 0) throw bad(face_where(f, 0) + " uses a negative vertex index " + std::to_string(idx));
+            if (!parse_integer(s, idx)) throw lr.malformed(quote(s) + " is not a vertex index (" + face_where(f, 0) + ")");
+            if (idx < 0) throw lr.malformed(face_where(f, 0) + " uses a negative vertex index " + std::to_string(idx));
             poly.push_back(static_cast<Index>(idx));
         }
         if (poly.size() < declared)
-            throw bad(face_where(f, 0) + " declares " + std::to_string(k) + " vertices but lists " +
+            throw lr.malformed(face_where(f, 0) + " declares " + std::to_string(k) + " vertices but lists " +
                       std::to_string(poly.size()));
         if (t.next(s)) note_ignored(g.info, "face colors");
         add_polygon(g, poly, options, path, f, lr.line(), n_vertices, nullptr);
@@ -137,25 +134,11 @@ inline void write_off(AtomicOutputFile& out, const std::vector<Vec3>& vertices, 
     out.put(' ');
     out.put_uint(faces ? faces->size() : 0);
     out.write(" 0\n");
-    for (std::size_t i = 0; i < vertices.size(); ++i) {
-        for (int c = 0; c < 3; ++c) {
-            if (c) out.put(' ');
-            out.put_double(vertices[i][c]);
-        }
-        if (with_normals)
-            for (int c = 0; c < 3; ++c) {
-                out.put(' ');
-                out.put_double((*normals)[i][c]);
-            }
-        out.put('\n');
-    }
+    write_xyz(out, vertices, normals);
     if (faces)
         for (const Face& f : *faces) {
-            out.put('3');
-            for (const Index v : f) {
-                out.put(' ');
-                out.put_uint(v);
-            }
+            out.write("3 ");
+            out.put_triple(f);
             out.put('\n');
         }
 }

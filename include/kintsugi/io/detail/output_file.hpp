@@ -29,6 +29,7 @@
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -206,6 +207,18 @@ public:
         char* p = reserve(24);
         const auto r = std::to_chars(p, p + 24, v);
         pos_ -= static_cast<std::size_t>(p + 24 - r.ptr);
+    }
+    /// The three entries of `v` separated by spaces ("x y z"): numbers through put_double,
+    /// indices through put_uint.
+    template <class V>
+    void put_triple(const V& v) {
+        for (int c = 0; c < 3; ++c) {
+            if (c) put(' ');
+            if constexpr (std::is_integral_v<std::decay_t<decltype(v[0])>>)
+                put_uint(v[c]);
+            else
+                put_double(v[c]);
+        }
     }
     /// A binary value in the file's byte order (`swap` = differs from the machine's).
     template <class T>

@@ -21,6 +21,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <unordered_set>
 #include <vector>
 
@@ -233,32 +234,38 @@ template <class T, bool Swap>
     return v;
 }
 
-template <bool Swap>
-[[nodiscard]] inline double ply_load_double(const char* p, PlyType t) {
+/// Loads the value of PLY type `t` at `p` as type R (an integer type gives -1 for a
+/// floating-point `t`; integer types are checked in the header).
+template <class R, bool Swap>
+[[nodiscard]] inline R ply_load_as(const char* p, PlyType t) {
+    auto as = [&](auto tag) -> R {
+        using T = decltype(tag);
+        if constexpr (std::is_integral_v<R> && !std::is_integral_v<T>)
+            return -1;
+        else
+            return static_cast<R>(ply_load<T, Swap>(p));
+    };
     switch (t) {
-        case PlyType::i8: return ply_load<std::int8_t, Swap>(p);
-        case PlyType::u8: return ply_load<std::uint8_t, Swap>(p);
-        case PlyType::i16: return ply_load<std::int16_t, Swap>(p);
-        case PlyType::u16: return ply_load<std::uint16_t, Swap>(p);
-        case PlyType::i32: return ply_load<std::int32_t, Swap>(p);
-        case PlyType::u32: return ply_load<std::uint32_t, Swap>(p);
-        case PlyType::f32: return ply_load<float, Swap>(p);
-        case PlyType::f64: return ply_load<double, Swap>(p);
+        case PlyType::i8: return as(std::int8_t{});
+        case PlyType::u8: return as(std::uint8_t{});
+        case PlyType::i16: return as(std::int16_t{});
+        case PlyType::u16: return as(std::uint16_t{});
+        case PlyType::i32: return as(std::int32_t{});
+        case PlyType::u32: return as(std::uint32_t{});
+        case PlyType::f32: return as(float{});
+        case PlyType::f64: return as(double{});
     }
     return 0;
 }
 
 template <bool Swap>
+[[nodiscard]] inline double ply_load_double(const char* p, PlyType t) {
+    return ply_load_as<double, Swap>(p, t);
+}
+
+template <bool Swap>
 [[nodiscard]] inline long long ply_load_integer(const char* p, PlyType t) {
-    switch (t) {
-        case PlyType::i8: return ply_load<std::int8_t, Swap>(p);
-        case PlyType::u8: return ply_load<std::uint8_t, Swap>(p);
-        case PlyType::i16: return ply_load<std::int16_t, Swap>(p);
-        case PlyType::u16: return ply_load<std::uint16_t, Swap>(p);
-        case PlyType::i32: return ply_load<std::int32_t, Swap>(p);
-        case PlyType::u32: return ply_load<std::uint32_t, Swap>(p);
-        default: return -1;  // not reached: integer types are checked in the header
-    }
+    return ply_load_as<long long, Swap>(p, t);
 }
 
 /// Per-vertex values collected from one item.
@@ -291,9 +298,56 @@ inline void ply_store_vertex(RawGeometry& g, const PlyVertexValues& val, bool no
     return PlyType::f32;
 }
 
+/// What a vertex element holds besides positions.
+struct PlyVertexData {
+    bool normals = false, radius = false;
+};
+
+/// What vertex element `e` holds, with g's arrays reserved for its `count` vertices.
+inline PlyVertexData ply_reserve_vertices(const PlyElement& e, std::size_t count, RawGeometry& g) {
+    PlyVertexData has;
+    for (const PlyProperty& prop : e.props) {
+        has.normals = has.normals || prop.role == PlyRole::nx;
+        has.radius = has.radius || prop.role == PlyRole::radius;
+    }
+    g.vertices.reserve(count);
+    if (has.normals) g.normals.reserve(count);
+    if (has.radius) g.radii.reserve(count);
+    return has;
+}
+
 [[nodiscard]] inline io_error ply_truncated(const std::string& path, const PlyElement& e, std::uint64_t item) {
     return io_error(path, "truncated PLY body: the file ends inside " + shown(e.name) + " " + std::to_string(item) +
                               " of " + std::to_string(e.count) + " declared in the header");
+}
+
+/// Walks one item of element `e` (number `item`) in a binary body, advancing `p`: each scalar
+/// property goes to `on_scalar(prop, at)`, each list to `on_list(prop, n, first)` once its `n`
+/// items are known to be in the file; `on_negative(n)` may throw its own message for a negative
+/// count first (else a negative count, like a short file, is a truncation).
+template <bool Swap, class OnScalar, class OnList, class OnNegative>
+inline void ply_binary_item(const char*& p, const char* const end, const PlyElement& e, std::size_t item,
+                            const std::string& path, OnScalar&& on_scalar, OnList&& on_list,
+                            OnNegative&& on_negative) {
+    for (const PlyProperty& prop : e.props) {
+        if (prop.is_list) {
+            const std::size_t cs = ply_size(prop.count_type);
+            if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, item);
+            const long long n = ply_load_integer<Swap>(p, prop.count_type);
+            p += cs;
+            const std::size_t is = ply_size(prop.type);
+            if (n < 0) on_negative(n);
+            if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
+                throw ply_truncated(path, e, item);
+            on_list(prop, static_cast<std::size_t>(n), static_cast<const char*>(p));
+            p += static_cast<std::size_t>(n) * is;
+        } else {
+            const std::size_t s = ply_size(prop.type);
+            if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, item);
+            on_scalar(prop, static_cast<const char*>(p));
+            p += s;
+        }
+    }
 }
 
 template <bool Swap>
@@ -328,14 +382,8 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
                                      std::to_string(remaining) + " bytes follow the header");
         const std::size_t count = static_cast<std::size_t>(e.count);
         if (e.name == "vertex") {
-            bool normals = false, radius = false;
-            for (const PlyProperty& prop : e.props) {
-                normals = normals || prop.role == PlyRole::nx;
-                radius = radius || prop.role == PlyRole::radius;
-            }
-            g.vertices.reserve(count);
-            if (normals) g.normals.reserve(count);
-            if (radius) g.radii.reserve(count);
+            const PlyVertexData has = ply_reserve_vertices(e, count, g);
+            const bool normals = has.normals, radius = has.radius;
             PlyVertexValues val;
             if (fixed) {
                 // Fast path: fixed stride, offsets precomputed, bounds checked once above.
@@ -363,28 +411,11 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
                 const PlyType rtype = radius_type(e);
                 auto typed = [&](auto tag) {
                     using T = decltype(tag);
-                    g.vertices.resize(count);
-                    if (normals) g.normals.resize(count);
+                    const int last = normals ? 6 : 3;
                     for (std::size_t i = 0; i < count; ++i, p += stride) {
-                        const Vec3 v(static_cast<double>(ply_load<T, Swap>(p + off_of[1])),
-                                     static_cast<double>(ply_load<T, Swap>(p + off_of[2])),
-                                     static_cast<double>(ply_load<T, Swap>(p + off_of[3])));
-                        if (!all_finite(v))
-                            throw io_error(path, vertex_where(i, 0) + " has a non-finite coordinate (NaN or Inf)");
-                        g.vertices[i] = v;
-                        if (normals) {
-                            const Vec3 n(static_cast<double>(ply_load<T, Swap>(p + off_of[4])),
-                                         static_cast<double>(ply_load<T, Swap>(p + off_of[5])),
-                                         static_cast<double>(ply_load<T, Swap>(p + off_of[6])));
-                            if (!all_finite(n))
-                                throw io_error(path, vertex_where(i, 0) + " has a non-finite normal (NaN or Inf)");
-                            g.normals[i] = n;
-                        }
-                        if (radius) {
-                            const double r = ply_load_double<Swap>(p + off_of[7], rtype);
-                            if (!std::isfinite(r)) throw io_error(path, vertex_where(i, 0) + " has a non-finite radius");
-                            g.radii.push_back(r);
-                        }
+                        for (int r = 1; r <= last; ++r) val.v[r] = static_cast<double>(ply_load<T, Swap>(p + off_of[r]));
+                        if (radius) val.v[7] = ply_load_double<Swap>(p + off_of[7], rtype);
+                        ply_store_vertex(g, val, normals, radius, i, 0, path);
                     }
                 };
                 if (uniform && t0 == PlyType::f32) {
@@ -399,24 +430,13 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
                 }
             } else {
                 for (std::size_t i = 0; i < count; ++i) {
-                    for (const PlyProperty& prop : e.props) {
-                        if (prop.is_list) {
-                            const std::size_t cs = ply_size(prop.count_type);
-                            if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, i);
-                            const long long n = ply_load_integer<Swap>(p, prop.count_type);
-                            p += cs;
-                            const std::size_t is = ply_size(prop.type);
-                            if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
-                                throw ply_truncated(path, e, i);
-                            p += static_cast<std::size_t>(n) * is;
-                        } else {
-                            const std::size_t s = ply_size(prop.type);
-                            if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, i);
+                    ply_binary_item<Swap>(
+                        p, end, e, i, path,
+                        [&](const PlyProperty& prop, const char* at) {
                             if (prop.role != PlyRole::ignored)
-                                val.v[static_cast<int>(prop.role)] = ply_load_double<Swap>(p, prop.type);
-                            p += s;
-                        }
-                    }
+                                val.v[static_cast<int>(prop.role)] = ply_load_double<Swap>(at, prop.type);
+                        },
+                        [](const PlyProperty&, std::size_t, const char*) {}, [](long long) {});
                     ply_store_vertex(g, val, normals, radius, i, 0, path);
                 }
             }
@@ -426,59 +446,32 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
             deferred_faces = !vertices_done;
             g.faces.reserve(std::min(count, remaining / triangle_size));
             for (std::size_t f = 0; f < count; ++f) {
-                for (const PlyProperty& prop : e.props) {
-                    if (prop.is_list) {
-                        const std::size_t cs = ply_size(prop.count_type);
-                        if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, f);
-                        const long long n = ply_load_integer<Swap>(p, prop.count_type);
-                        p += cs;
+                ply_binary_item<Swap>(
+                    p, end, e, f, path, [](const PlyProperty&, const char*) {},
+                    [&](const PlyProperty& prop, std::size_t n, const char* at) {
+                        if (prop.role != PlyRole::indices) return;
                         const std::size_t is = ply_size(prop.type);
-                        if (n < 0)
-                            throw io_error(path, face_where(f, 0) + " has a negative vertex count " + std::to_string(n));
-                        if (static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
-                            throw ply_truncated(path, e, f);
-                        if (prop.role == PlyRole::indices) {
-                            poly.resize(static_cast<std::size_t>(n));
-                            for (std::size_t k = 0; k < poly.size(); ++k, p += is) {
-                                const long long idx = ply_load_integer<Swap>(p, prop.type);
-                                if (idx < 0)
-                                    throw io_error(path, face_where(f, 0) + " uses a negative vertex index " +
-                                                             std::to_string(idx));
-                                poly[k] = static_cast<Index>(idx);
-                            }
-                            add_polygon(g, poly, options, path, f, 0, nv_known,
-                                        deferred_faces ? &face_of_triangle : nullptr);
-                        } else {
-                            p += static_cast<std::size_t>(n) * is;
+                        poly.resize(n);
+                        for (std::size_t k = 0; k < n; ++k, at += is) {
+                            const long long idx = ply_load_integer<Swap>(at, prop.type);
+                            if (idx < 0)
+                                throw io_error(path, face_where(f, 0) + " uses a negative vertex index " +
+                                                         std::to_string(idx));
+                            poly[k] = static_cast<Index>(idx);
                         }
-                    } else {
-                        const std::size_t s = ply_size(prop.type);
-                        if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, f);
-                        p += s;
-                    }
-                }
+                        add_polygon(g, poly, options, path, f, 0, nv_known, deferred_faces ? &face_of_triangle : nullptr);
+                    },
+                    [&](long long n) {
+                        throw io_error(path, face_where(f, 0) + " has a negative vertex count " + std::to_string(n));
+                    });
             }
         } else if (fixed) {
             p += count * min_size;  // checked against the remaining bytes above
         } else {
-            for (std::size_t i = 0; i < count; ++i) {
-                for (const PlyProperty& prop : e.props) {
-                    if (prop.is_list) {
-                        const std::size_t cs = ply_size(prop.count_type);
-                        if (static_cast<std::size_t>(end - p) < cs) throw ply_truncated(path, e, i);
-                        const long long n = ply_load_integer<Swap>(p, prop.count_type);
-                        p += cs;
-                        const std::size_t is = ply_size(prop.type);
-                        if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / is)
-                            throw ply_truncated(path, e, i);
-                        p += static_cast<std::size_t>(n) * is;
-                    } else {
-                        const std::size_t s = ply_size(prop.type);
-                        if (static_cast<std::size_t>(end - p) < s) throw ply_truncated(path, e, i);
-                        p += s;
-                    }
-                }
-            }
+            for (std::size_t i = 0; i < count; ++i)
+                ply_binary_item<Swap>(
+                    p, end, e, i, path, [](const PlyProperty&, const char*) {},
+                    [](const PlyProperty&, std::size_t, const char*) {}, [](long long) {});
         }
     }
     if (deferred_faces) check_face_indices(g, face_of_triangle, path);
@@ -556,24 +549,32 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
                                          shown(e.name) + " " + std::to_string(item) + ", property " + shown(prop.name) + ")");
             return static_cast<std::size_t>(n);
         };
-        if (e.name == "vertex") {
-            bool normals = false, radius = false;
+        // Walks item `item`: a scalar's token goes to on_scalar(prop), a list's length to
+        // on_list(prop, n), which reads its n tokens.
+        auto walk = [&](std::size_t item, auto&& on_scalar, auto&& on_list) {
             for (const PlyProperty& prop : e.props) {
-                normals = normals || prop.role == PlyRole::nx;
-                radius = radius || prop.role == PlyRole::radius;
+                if (prop.is_list) {
+                    on_list(prop, list_count(item, prop));
+                } else {
+                    next_token(item);
+                    on_scalar(prop);
+                }
             }
-            g.vertices.reserve(count);
-            if (normals) g.normals.reserve(count);
-            if (radius) g.radii.reserve(count);
+        };
+        auto skip = [&](std::size_t item) {
+            return [&next_token, item](const PlyProperty&, std::size_t n) {
+                for (std::size_t k = 0; k < n; ++k) next_token(item);
+            };
+        };
+        if (e.name == "vertex") {
+            const PlyVertexData has = ply_reserve_vertices(e, count, g);
+            const bool normals = has.normals, radius = has.radius;
             PlyVertexValues val;
             for (std::size_t i = 0; i < count; ++i) {
                 std::size_t line = 0;
-                for (const PlyProperty& prop : e.props) {
-                    if (prop.is_list) {
-                        const std::size_t n = list_count(i, prop);
-                        for (std::size_t k = 0; k < n; ++k) next_token(i);
-                    } else {
-                        next_token(i);
+                walk(
+                    i,
+                    [&](const PlyProperty& prop) {
                         if (line == 0) line = cur.line();
                         if (prop.role != PlyRole::ignored) {
                             double d = number(i, prop);
@@ -585,8 +586,8 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
                                         : static_cast<double>(static_cast<float>(d));
                             val.v[static_cast<int>(prop.role)] = d;
                         }
-                    }
-                }
+                    },
+                    skip(i));
                 ply_store_vertex(g, val, normals, radius, i, line, path);
             }
             vertices_done = true;
@@ -594,42 +595,23 @@ inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const
             const std::size_t nv_known = vertices_done ? g.vertices.size() : static_cast<std::size_t>(-1);
             deferred_faces = !vertices_done;
             g.faces.reserve(std::min(count, remaining / (2 * triangle_tokens)));
-            for (std::size_t f = 0; f < count; ++f) {
-                for (const PlyProperty& prop : e.props) {
-                    if (prop.is_list) {
-                        const std::size_t n = list_count(f, prop);
-                        const std::size_t line = cur.line();
-                        if (prop.role == PlyRole::indices) {
-                            poly.resize(n);
-                            for (std::size_t k = 0; k < n; ++k) {
-                                next_token(f);
-                                const long long idx = integer(f, prop);
-                                if (idx < 0)
-                                    throw io_error(path, face_where(f, cur.line()) + " uses a negative vertex index " +
-                                                             std::to_string(idx));
-                                poly[k] = static_cast<Index>(idx);
-                            }
-                            add_polygon(g, poly, options, path, f, line, nv_known,
-                                        deferred_faces ? &face_of_triangle : nullptr);
-                        } else {
-                            for (std::size_t k = 0; k < n; ++k) next_token(f);
-                        }
-                    } else {
+            for (std::size_t f = 0; f < count; ++f)
+                walk(f, [](const PlyProperty&) {}, [&](const PlyProperty& prop, std::size_t n) {
+                    if (prop.role != PlyRole::indices) return skip(f)(prop, n);
+                    const std::size_t line = cur.line();
+                    poly.resize(n);
+                    for (std::size_t k = 0; k < n; ++k) {
                         next_token(f);
+                        const long long idx = integer(f, prop);
+                        if (idx < 0)
+                            throw io_error(path, face_where(f, cur.line()) + " uses a negative vertex index " +
+                                                     std::to_string(idx));
+                        poly[k] = static_cast<Index>(idx);
                     }
-                }
-            }
+                    add_polygon(g, poly, options, path, f, line, nv_known, deferred_faces ? &face_of_triangle : nullptr);
+                });
         } else {
-            for (std::size_t i = 0; i < count; ++i) {
-                for (const PlyProperty& prop : e.props) {
-                    if (prop.is_list) {
-                        const std::size_t n = list_count(i, prop);
-                        for (std::size_t k = 0; k < n; ++k) next_token(i);
-                    } else {
-                        next_token(i);
-                    }
-                }
-            }
+            for (std::size_t i = 0; i < count; ++i) walk(i, [](const PlyProperty&) {}, skip(i));
         }
     }
     if (deferred_faces) check_face_indices(g, face_of_triangle, path);

@@ -19,10 +19,8 @@
 namespace kintsugi::detail::io {
 
 inline RawGeometry read_xyz(const FileBuffer& buf, bool pwn, const std::string& path) {
-    RawGeometry g;
-    g.info.format = pwn ? "pwn" : "xyz";
-    const char* kind = pwn ? "PWN" : "XYZ";
-    LineReader lr(text_begin(buf, path), buf.end(), '#');
+    RawGeometry g = raw_geometry(pwn ? "pwn" : "xyz");
+    TextLines lr(buf, path, pwn ? "PWN" : "XYZ");
     std::string_view line, s;
     std::size_t columns = 0;
     bool first = true;
@@ -32,8 +30,7 @@ inline RawGeometry read_xyz(const FileBuffer& buf, bool pwn, const std::string& 
         std::size_t n = 0;
         while (t.next(s)) {
             if (n < 6 && !parse_double(s, v[n]))
-                throw io_error(path, "malformed " + std::string(kind) + " (line " + std::to_string(lr.line()) +
-                                         "): " + quote(s) + " is not a number");
+                throw lr.malformed(quote(s) + " is not a number");
             ++n;
         }
         if (first) {
@@ -46,14 +43,12 @@ inline RawGeometry read_xyz(const FileBuffer& buf, bool pwn, const std::string& 
         }
         if (columns == 0) {
             if (pwn ? n != 6 : (n != 3 && n != 6))
-                throw io_error(path, "malformed " + std::string(kind) + " (line " + std::to_string(lr.line()) +
-                                         "): expected " + (pwn ? "6 numbers (x y z nx ny nz)" :
+                throw lr.malformed(std::string("expected ") + (pwn ? "6 numbers (x y z nx ny nz)" :
                                                                  "3 numbers (x y z) or 6 (x y z nx ny nz)") +
                                          ", found " + std::to_string(n));
             columns = n;
         } else if (n != columns) {
-            throw io_error(path, "malformed " + std::string(kind) + " (line " + std::to_string(lr.line()) + "): found " +
-                                     std::to_string(n) + " numbers, but the first point has " +
+            throw lr.malformed("found " + std::to_string(n) + " numbers, but the first point has " +
                                      std::to_string(columns));
         }
         const Vec3 p(v[0], v[1], v[2]);
@@ -74,19 +69,15 @@ inline RawGeometry read_xyz(const FileBuffer& buf, bool pwn, const std::string& 
     return g;
 }
 
-/// Writes `x y z [nx ny nz]` per line.
+/// Writes `x y z [nx ny nz]` per line (also the vertex lines of OFF).
 inline void write_xyz(AtomicOutputFile& out, const std::vector<Vec3>& points, const std::vector<Vec3>* normals) {
     const bool with_normals = normals && !normals->empty();
     for (std::size_t i = 0; i < points.size(); ++i) {
-        for (int c = 0; c < 3; ++c) {
-            if (c) out.put(' ');
-            out.put_double(points[i][c]);
+        out.put_triple(points[i]);
+        if (with_normals) {
+            out.put(' ');
+            out.put_triple((*normals)[i]);
         }
-        if (with_normals)
-            for (int c = 0; c < 3; ++c) {
-                out.put(' ');
-                out.put_double((*normals)[i][c]);
-            }
         out.put('\n');
     }
 }

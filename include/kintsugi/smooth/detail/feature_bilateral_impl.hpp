@@ -11,6 +11,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/spatial/uniform_grid.hpp>
 
@@ -91,25 +92,6 @@ inline void compute_face_geometry(const std::vector<Vec3>& V, const std::vector<
         g.area[f] = degenerate ? Scalar(0) : len / 2;
         g.centroid[f] = (a + b + c) / 3;
     }, 1024);
-}
-
-/// Mean length of the unique edges (self edges of repeated-index faces excluded).
-inline Scalar mean_edge_length(const std::vector<Vec3>& V, const MeshTopology& topo) {
-    const auto& E = topo.edges();
-    const auto sum = parallel_reduce(
-        0, E.size(), std::pair<Scalar, std::size_t>{0, 0},
-        [&](std::size_t first, std::size_t last, std::pair<Scalar, std::size_t> acc) {
-            for (std::size_t e = first; e < last; ++e)
-                if (E[e][0] != E[e][1]) {
-                    acc.first += (V[E[e][0]] - V[E[e][1]]).norm();
-                    ++acc.second;
-                }
-            return acc;
-        },
-        [](std::pair<Scalar, std::size_t> x, std::pair<Scalar, std::size_t> y) {
-            return std::pair<Scalar, std::size_t>{x.first + y.first, x.second + y.second};
-        });
-    return sum.second ? sum.first / static_cast<Scalar>(sum.second) : Scalar(0);
 }
 
 /// Grid filter: item i is kept when weight[i] > 0 (zero-area faces, zero-length edges
