@@ -106,18 +106,65 @@ inline void validate_common(const char* fn, std::size_t n, std::size_t k, std::s
                             "] (the number of neighbours of each point, at most the number of points)");
 }
 
-inline void validate_points(const char* fn, const std::vector<Vec3>& pts) {
-    for (std::size_t i = 0; i < pts.size(); ++i)
-        if (!pts[i].allFinite())
-            throw invalid_input(std::string(fn) + ": point " + std::to_string(i) +
-                                " has a NaN or infinite coordinate; remove it first");
-}
-
 template <class P>
 void write_normals(P& points, const std::vector<Vec3>& normals) {
     if constexpr (requires { point_set_traits<P>::prepare_normals(points); })
         point_set_traits<P>::prepare_normals(points);
     for (std::size_t i = 0; i < normals.size(); ++i) point_set_traits<P>::set_normal(points, i, normals[i]);
+}
+
+/// The positions of `points`, checked finite (invalid_input naming `fn` otherwise).
+template <class P>
+std::vector<Vec3> checked_positions(const char* fn, const P& points) {
+    std::vector<Vec3> pts = kintsugi::gather_points(points);
+    check_finite_points(pts, std::string(fn) + ": point ");
+    return pts;
+}
+
+/// estimate_normals' checks, in order; returns the positions in the caller's frame.
+template <class P>
+std::vector<Vec3> estimate_input(const char* fn, const P& points, const NormalParams& params) {
+    if (params.method != NormalMethod::pca && params.method != NormalMethod::jet)
+        throw invalid_input(std::string(fn) + ": params.method is not a NormalMethod (pca or jet)");
+    const bool jet = params.method == NormalMethod::jet;
+    const std::size_t n = kintsugi::num_points(points);
+    validate_common(fn, n, params.k, 3);
+    if (jet && params.k < 5)
+        throw invalid_input(std::string(fn) + ": params.k = " + std::to_string(params.k) +
+                            " is too small for jet fitting, which needs k >= 5 (the point and 5 neighbours "
+                            "for the quadric's 6 coefficients)");
+    if (jet && n < 6)
+        throw invalid_input(std::string(fn) + ": the point set has " + std::to_string(n) +
+                            " points; jet fitting needs at least 6");
+    return checked_positions(fn, points);
+}
+
+/// A KdTree over `pts` (stage "kd-tree", [0, a)) and each point's `k` nearest (stage
+/// "neighbours", [a, b)); returns then(positions, table).
+template <class Then>
+auto with_own_neighbours(std::vector<Vec3>&& pts, std::size_t k, double a, double b, Progress& progress,
+                         Then&& then) {
+    progress.stage("kd-tree", 0.0, a);
+    const auto tree = KdTree::adopt(std::move(pts));
+    progress.stage("neighbours", a, b);
+    return then(tree.points(), knn_table(tree, tree.points(), k, progress));
+}
+
+/// The stages after "neighbours": fit (from `a`), orient when asked, then the normals
+/// written into `points`. `pts` in the local frame, `table` over them.
+template <class P>
+NormalResult fit_orient_write(P& points, const std::vector<Vec3>& pts, const KnnTable& table,
+                              const NormalParams& params, double a, Progress& progress) {
+    NormalResult result;
+    progress.stage("fit", a, params.orient ? 0.8 : 1.0);
+    std::vector<Vec3> normals = fit_normals(pts, table, params.method == NormalMethod::jet, progress);
+    if (params.orient) {
+        progress.stage("orient", 0.8, 1.0);
+        result.components = orient_mst(pts, table, normals, progress);
+    }
+    result.timings = progress.finish();
+    write_normals(points, normals);
+    return result;
 }
 
 }  // namespace detail::normals
@@ -143,44 +190,53 @@ void write_normals(P& points, const std::vector<Vec3>& normals) {
 ///         false or stop requested): the point set, normals included, is untouched.
 template <NormalWritablePointSet P>
 NormalResult estimate_normals(P& points, const NormalParams& params = {}) {
-    constexpr const char* fn = "kintsugi::estimate_normals";
-    if (params.method != NormalMethod::pca && params.method != NormalMethod::jet)
-        throw invalid_input(std::string(fn) + ": params.method is not a NormalMethod (pca or jet)");
-    const bool jet = params.method == NormalMethod::jet;
-    const std::size_t n = kintsugi::num_points(points);
-    detail::normals::validate_common(fn, n, params.k, 3);
-    if (jet && params.k < 5)
-        throw invalid_input(std::string(fn) + ": params.k = " + std::to_string(params.k) +
-                            " is too small for jet fitting, which needs k >= 5 (the point and 5 neighbours "
-                            "for the quadric's 6 coefficients)");
-    if (jet && n < 6)
-        throw invalid_input(std::string(fn) + ": the point set has " + std::to_string(n) +
-                            " points; jet fitting needs at least 6");
-    std::vector<Vec3> pts = kintsugi::gather_points(points);
-    detail::normals::validate_points(fn, pts);
+    std::vector<Vec3> pts = detail::normals::estimate_input("kintsugi::estimate_normals", points, params);
+    const std::size_t n = pts.size();
     detail::scale_frame(pts).to_local(pts);  // any magnitude: exact power-of-two rescaling
-
-    NormalResult result;
+    NormalResult result = detail::run_cancellable<NormalResult>(params.control, [&](detail::Progress& progress) {
+        return detail::normals::with_own_neighbours(
+            std::move(pts), std::min(params.k + 1, n), 0.1, 0.4, progress,
+            [&](const std::vector<Vec3>& local, const detail::normals::KnnTable& table) {
+                return detail::normals::fit_orient_write(points, local, table, params, 0.4, progress);
+            });
+    });
     result.points = n;
-    detail::Progress progress(params.control);
-    try {
-        progress.stage("kd-tree", 0.0, 0.1);
-        const auto tree = KdTree::adopt(std::move(pts));
-        progress.stage("neighbours", 0.1, 0.4);
-        const auto table = detail::normals::knn_table(tree, std::min(params.k + 1, n), progress);
-        progress.stage("fit", 0.4, params.orient ? 0.8 : 1.0);
-        std::vector<Vec3> normals = detail::normals::fit_normals(tree.points(), table, jet, progress);
-        std::size_t components = 0;
-        if (params.orient) {
-            progress.stage("orient", 0.8, 1.0);
-            components = detail::normals::orient_mst(tree.points(), table, normals, progress);
-        }
-        result.timings = progress.finish();
-        detail::normals::write_normals(points, normals);
-        result.components = components;
-    } catch (const detail::cancelled_exception&) {
-        result.status = Status::cancelled;
-    }
+    return result;
+}
+
+/// @brief estimate_normals() over a spatial index the caller already holds (a KdTree, a
+/// UniformGrid or any type of theirs modelling SpatialIndex): no tree is built. The
+/// normals are those estimate_normals(points, params) gives, bit for bit, whatever the
+/// index, since every SpatialIndex returns the same neighbours in the same order.
+///
+/// @tparam P as estimate_normals(points, params).
+/// @tparam S a SpatialIndex over the positions of `points`, same numbering (point i of
+///         the index is point i of `points`), in the points' own coordinates; its const
+///         knn() is called from several threads at once.
+/// @param index  the index; not modified.
+/// @param params as estimate_normals(points, params); the stages are "neighbours", "fit",
+///        "orient" (no "kd-tree").
+/// @throws invalid_input as estimate_normals(points, params), and when index.size()
+///         differs from the number of points or a query returns fewer than k + 1
+///         neighbours or an index out of range; the input is untouched.
+/// @return as estimate_normals(points, params).
+template <NormalWritablePointSet P, SpatialIndex S>
+NormalResult estimate_normals(P& points, const S& index, const NormalParams& params = {}) {
+    constexpr const char* fn = "kintsugi::estimate_normals";
+    const std::vector<Vec3> world = detail::normals::estimate_input(fn, points, params);
+    const std::size_t n = world.size();
+    if (static_cast<std::size_t>(index.size()) != n)
+        throw invalid_input(std::string(fn) + ": the spatial index holds " + std::to_string(index.size()) +
+                            " points and the point set " + std::to_string(n) +
+                            "; build the index over the same points");
+    NormalResult result = detail::run_cancellable<NormalResult>(params.control, [&](detail::Progress& progress) {
+        progress.stage("neighbours", 0.0, 0.4);
+        const auto table = detail::normals::knn_table(index, world, std::min(params.k + 1, n), progress, fn);
+        std::vector<Vec3> local = world;
+        detail::scale_frame(local).to_local(local);  // as estimate_normals(points, params) fits
+        return detail::normals::fit_orient_write(points, local, table, params, 0.4, progress);
+    });
+    result.points = n;
     return result;
 }
 
@@ -206,8 +262,7 @@ NormalResult orient_normals(P& points, const NormalParams& params = {}) {
     detail::normals::validate_common(fn, n, params.k, 3);
     if (!kintsugi::has_normals(points))
         throw invalid_input(std::string(fn) + ": the point set has no normals; call kintsugi::estimate_normals instead");
-    std::vector<Vec3> pts = kintsugi::gather_points(points);
-    detail::normals::validate_points(fn, pts);
+    std::vector<Vec3> pts = detail::normals::checked_positions(fn, points);
     detail::scale_frame(pts).to_local(pts);  // any magnitude: exact power-of-two rescaling
     std::vector<Vec3> normals = kintsugi::gather_normals(points);
     for (std::size_t i = 0; i < n; ++i)
@@ -215,26 +270,23 @@ NormalResult orient_normals(P& points, const NormalParams& params = {}) {
             throw invalid_input(std::string(fn) + ": normal " + std::to_string(i) +
                                 " is zero, NaN or infinite; estimate normals first or remove the point");
 
-    NormalResult result;
+    NormalResult result = detail::run_cancellable<NormalResult>(params.control, [&](detail::Progress& progress) {
+        return detail::normals::with_own_neighbours(
+            std::move(pts), std::min(params.k + 1, n), 0.2, 0.6, progress,
+            [&](const std::vector<Vec3>& local, const detail::normals::KnnTable& table) {
+                progress.stage("orient", 0.6, 1.0);
+                // Orientation weights use unit directions; the written normals keep their length.
+                std::vector<Vec3> unit(n);
+                for (std::size_t i = 0; i < n; ++i) unit[i] = normals[i].normalized();
+                NormalResult r;
+                r.components = detail::normals::orient_mst(local, table, unit, progress);
+                r.timings = progress.finish();
+                for (std::size_t i = 0; i < n; ++i)
+                    if (unit[i].dot(normals[i]) < 0) point_set_traits<P>::set_normal(points, i, -normals[i]);
+                return r;
+            });
+    });
     result.points = n;
-    detail::Progress progress(params.control);
-    try {
-        progress.stage("kd-tree", 0.0, 0.2);
-        const auto tree = KdTree::adopt(std::move(pts));
-        progress.stage("neighbours", 0.2, 0.6);
-        const auto table = detail::normals::knn_table(tree, std::min(params.k + 1, n), progress);
-        progress.stage("orient", 0.6, 1.0);
-        // Orientation weights use unit directions; the written normals keep their length.
-        std::vector<Vec3> unit(n);
-        for (std::size_t i = 0; i < n; ++i) unit[i] = normals[i].normalized();
-        const std::size_t components = detail::normals::orient_mst(tree.points(), table, unit, progress);
-        result.timings = progress.finish();
-        for (std::size_t i = 0; i < n; ++i)
-            if (unit[i].dot(normals[i]) < 0) point_set_traits<P>::set_normal(points, i, -normals[i]);
-        result.components = components;
-    } catch (const detail::cancelled_exception&) {
-        result.status = Status::cancelled;
-    }
     return result;
 }
 

@@ -9,6 +9,7 @@
 ///
 /// Dependencies: Eigen, Boost.Graph, nanoflann (through KdTree); no GPL code.
 
+#include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
@@ -24,6 +25,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -51,18 +53,31 @@ void blocked_for(std::size_t n, Progress& progress, Body&& body) {
     }
 }
 
-/// The k nearest points of every point (including itself). @pre k <= points.size()
-inline KnnTable knn_table(const KdTree& tree, std::size_t k, Progress& progress) {
-    const std::size_t n = tree.size();
+/// The k nearest indexed points of every query, from any SpatialIndex (queried in
+/// parallel: its const queries must be safe to call concurrently, as KdTree's and
+/// UniformGrid's are). Throws invalid_input naming `fn` when a row is short or holds an
+/// index out of [0, index.size()) (an index not over the queries' points).
+/// @pre k <= index.size()
+template <SpatialIndex S>
+KnnTable knn_table(const S& index, const std::vector<Vec3>& queries, std::size_t k, Progress& progress,
+                   const char* fn = "kintsugi::estimate_normals") {
+    const std::size_t n = queries.size(), size = index.size();
     KnnTable t;
     t.k = k;
     t.index.resize(n * k);
     blocked_for(n, progress, [&](std::size_t i) {
         thread_local std::vector<Neighbor> nn;
-        tree.knn(tree.point(i), k, nn);
+        index.knn(queries[i], k, nn);
         NodeIndex* out = t.index.data() + i * k;
-        for (std::size_t j = 0; j < k; ++j) out[j] = static_cast<NodeIndex>(nn[j].index);
+        for (std::size_t j = 0; j < k; ++j)
+            out[j] = j < nn.size() && nn[j].index < size ? static_cast<NodeIndex>(nn[j].index)
+                                                         : std::numeric_limits<NodeIndex>::max();
     });
+    for (std::size_t i = 0; i < n * k; ++i)
+        if (t.index[i] == std::numeric_limits<NodeIndex>::max())
+            throw invalid_input(std::string(fn) + ": the spatial index gave point " + std::to_string(i / k) +
+                                " fewer than " + std::to_string(k) +
+                                " neighbours or an index out of range; build it over the same points");
     return t;
 }
 
