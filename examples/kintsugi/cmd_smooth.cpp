@@ -34,10 +34,10 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("--b", p.b, "Edge range scale (sigma = b|e|)")->capture_default_str()->check(positive);
     cmd.add_option("--c", p.c, "Face spatial scale (sigma = c|e|/2, c|e|)")->capture_default_str()->check(positive);
     cmd.add_option("--d", p.d, "Face range scale (sigma = d|e|)")->capture_default_str()->check(positive);
-    cmd.add_option("--edge-threshold", p.edge_threshold, "Edge strength threshold (paper: 0.251; scans 0.102)")
+    cmd.add_option("--edge-threshold", p.detection.edge_threshold, "Edge strength threshold (paper: 0.251; scans 0.102)")
         ->capture_default_str()
         ->check(kcli::real(0.0, 1.0));
-    cmd.add_option("--voting-cube", p.voting_cube, "Voting cube side in mean edge lengths (paper: 3; scans 9)")
+    cmd.add_option("--voting-cube", p.detection.voting_cube, "Voting cube side in mean edge lengths (paper: 3; scans 9)")
         ->capture_default_str()
         ->check(positive);
     cmd.add_option("--edge-iterations", p.edge_iterations, "Passes of the sharp-edge filters")
@@ -87,8 +87,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["b"] = params.b;
         j["parameters"]["c"] = params.c;
         j["parameters"]["d"] = params.d;
-        j["parameters"]["edge_threshold"] = params.edge_threshold;
-        j["parameters"]["voting_cube"] = params.voting_cube;
+        j["parameters"]["edge_threshold"] = params.detection.edge_threshold;
+        j["parameters"]["voting_cube"] = params.detection.voting_cube;
         j["parameters"]["edge_iterations"] = params.edge_iterations;
         j["parameters"]["face_iterations"] = params.face_iterations;
         j["parameters"]["features"] = params.features;

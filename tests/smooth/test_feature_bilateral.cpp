@@ -272,7 +272,7 @@ TEST_CASE("bad input throws invalid_input naming the problem and leaves the mesh
     expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.d = std::numeric_limits<double>::quiet_NaN()}); },
                  "d = ");
     expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.c = -1}); }, "c = -1");
-    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.edge_threshold = 2}); }, "edge_threshold");
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.detection = {.edge_threshold = 2}}); }, "edge_threshold");
     expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.face_iterations = 20000}); }, "face_iterations");
     expect_throw([&] { (void)ks::detect_sharp_features(m, {.voting_cube = 0}); }, "voting_cube");
     expect_throw([&] { (void)ks::detect_sharp_features(m, {.direction_threshold = -0.5}); }, "direction_threshold");

@@ -150,6 +150,7 @@
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
+#include <kintsugi/smooth/sharp_feature_params.hpp>
 #include <kintsugi/spatial/morton.hpp>
 
 #include <algorithm>
@@ -162,35 +163,6 @@
 #include <vector>
 
 namespace kintsugi {
-
-/// Parameters of detect_sharp_features().
-struct SharpFeatureParams {
-    /// Side of the voting cube, in mean edge lengths. Paper: 3 (synthetic noise), 9 (scan).
-    Scalar voting_cube = 3;
-    /// Edge-strength threshold for edge-candidate vertices. Paper: 0.251 (synthetic
-    /// noise; ≈ edges sharper than 53°), 0.102 for its real scan (≈ 35°).
-    Scalar edge_threshold = 0.251;
-    /// |d_e · e3| needed for a mesh edge at a candidate vertex to be sharp (paper: 0.9).
-    /// Used when crease_test is false.
-    Scalar direction_threshold = 0.9;
-    /// Whether boundary edges may be sharp edges (default: never).
-    bool boundary_edges_sharp = false;
-    /// Passes of filter 3 on the face normals before voting (0 = the paper: raw normals).
-    std::size_t prefilter_iterations = 3;
-    /// Spatial scale c of that filter and of the pre-smoothing, in mean edge lengths.
-    Scalar prefilter_scale = 2;
-    /// true: a sharp edge needs its two faces' (filtered) normals at least
-    /// 2·atan(√edge_threshold) apart instead of the direction test (false = the paper).
-    bool crease_test = true;
-    /// Passes of filters 3–4 on a copy of the mesh before voting (0 = the paper).
-    std::size_t presmooth_iterations = 3;
-    /// Range scale d of that pre-smoothing (σ_g = d|e|).
-    Scalar presmooth_range = 0.45;
-    /// Spatial scale c of the pre-smoothing's vertex filter (its normal filter uses
-    /// prefilter_scale), in mean edge lengths.
-    Scalar presmooth_vertex_scale = 1;
-    RunControl control{};
-};
 
 /// Sharp features of a mesh (all per-vertex arrays are indexed like the input vertices).
 struct SharpFeatures {
@@ -216,21 +188,13 @@ struct FeatureBilateralParams {
     Scalar b = 0.1;  ///< edge range scale: σ_eg = b|e| (paper: 0.1)
     Scalar c = 1;    ///< face spatial scale: σ_mf = c|e|/2, σ_f = c|e| (paper: 2; measured, see above)
     Scalar d = 0.14;  ///< face range scale: σ_g = d|e| (paper: 0.1; measured, see above)
-    Scalar edge_threshold = 0.251;    ///< see SharpFeatureParams::edge_threshold
-    Scalar voting_cube = 3;           ///< see SharpFeatureParams::voting_cube
+    /// The sharp-edge detection (its `control` is not used: `control` below governs the run).
+    SharpFeatureParams detection{};
     std::size_t edge_iterations = 2;  ///< passes of filters 1–2 (paper: 2)
     std::size_t face_iterations = 3;  ///< passes of filters 3–4 (paper: 2; measured)
     bool features = true;  ///< false: no feature detection, filters 3–4 alone
-    Scalar direction_threshold = 0.9;      ///< see SharpFeatureParams
-    bool boundary_edges_sharp = false;     ///< see SharpFeatureParams
     std::size_t normal_iterations = 10;    ///< passes of filter 3 per face iteration (paper: 1; measured)
     std::size_t vertex_iterations = 2;     ///< passes of filter 4 per face iteration (paper: 1; measured)
-    std::size_t prefilter_iterations = 3;  ///< see SharpFeatureParams
-    Scalar prefilter_scale = 2;            ///< see SharpFeatureParams
-    bool crease_test = true;               ///< see SharpFeatureParams
-    std::size_t presmooth_iterations = 3;  ///< see SharpFeatureParams
-    Scalar presmooth_range = 0.45;         ///< see SharpFeatureParams
-    Scalar presmooth_vertex_scale = 1;     ///< see SharpFeatureParams
     bool keep_edge_vertices = false;  ///< true: filter 4 leaves sharp-edge vertices alone
     bool separate_features = true;    ///< sharp edges bound the face filters' neighbourhoods (see above)
     RunControl control{};
@@ -312,11 +276,8 @@ inline FeatureData run_detection(const IndexedMesh& m, const MeshTopology& topo,
     pre.d = p.presmooth_range;
     pre.normal_iterations = std::max<std::size_t>(p.prefilter_iterations, 1);
     pre.vertex_c = p.presmooth_vertex_scale;
-    return detect_features_presmoothed(m.vertices, m.faces, topo, L,
-                                       {p.voting_cube, p.edge_threshold, p.direction_threshold,
-                                        p.boundary_edges_sharp, p.prefilter_iterations, p.prefilter_scale,
-                                        p.crease_test},
-                                       pre, p.presmooth_iterations, has_face, progress, ws);
+    return detect_features_presmoothed(m.vertices, m.faces, topo, L, p, pre, p.presmooth_iterations, has_face,
+                                       progress, ws);
 }
 
 inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
@@ -472,12 +433,7 @@ template <MutableTriangleMesh M>
 FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralParams& params = {}) {
     constexpr const char* fn = "kintsugi::smooth_feature_bilateral";
     namespace fbs = detail::fbs;
-    const SharpFeatureParams detection{params.voting_cube,          params.edge_threshold,
-                                       params.direction_threshold,  params.boundary_edges_sharp,
-                                       params.prefilter_iterations, params.prefilter_scale,
-                                       params.crease_test,          params.presmooth_iterations,
-                                       params.presmooth_range,      params.presmooth_vertex_scale,
-                                       {}};
+    const SharpFeatureParams& detection = params.detection;
     fbs::check_positive(fn, "a", params.a);
     fbs::check_positive(fn, "b", params.b);
     fbs::check_positive(fn, "c", params.c);

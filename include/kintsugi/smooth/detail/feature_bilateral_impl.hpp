@@ -13,6 +13,7 @@
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/topology.hpp>
+#include <kintsugi/smooth/sharp_feature_params.hpp>
 #include <kintsugi/spatial/uniform_grid.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -414,20 +415,10 @@ struct FeatureData {
     std::size_t candidate_vertices = 0;
 };
 
-struct FeatureSettings {
-    Scalar cube = 3;             // voting cube side, in mean edge lengths
-    Scalar threshold = 0.251;    // edge-strength threshold
-    Scalar direction = 0.9;      // |d_e · e3| threshold
-    bool boundary_edges = false; // boundary edges may be sharp
-    std::size_t prefilter_iterations = 0;  // filter-3 passes on the normals before voting
-    Scalar prefilter_scale = 2;            // their c
-    bool crease_test = false;              // the edge's two (filtered) normals must differ by the threshold angle
-};
-
 /// Normal voting tensor of every vertex (Sun et al. 2002), its eigen-analysis, the
 /// edge strength s_i = v2 / v1 and the sharp edges.
 inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
-                                   const FaceGeometry& geo, Scalar mean_edge, const FeatureSettings& st,
+                                   const FaceGeometry& geo, Scalar mean_edge, const SharpFeatureParams& st,
                                    Progress& progress, double from, double to, Workspace& ws,
                                    bool keep_sets = false) {
     const std::size_t nv = V.size();
@@ -436,7 +427,7 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
     out.eigenvalues.assign(nv, Vec3::Zero());
     out.eigenvectors.assign(nv, {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()});
 
-    const Scalar h = st.cube * mean_edge / 2;  // half side of the voting cube
+    const Scalar h = st.voting_cube * mean_edge / 2;  // half side of the voting cube
     const Scalar falloff = h;                  // distance decay of the votes (see header)
     UniformGrid& grid = ws.grid;
     grid.build(geo.centroid, std::max(h, st.prefilter_scale * mean_edge), has_area(geo.area));
@@ -482,12 +473,12 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
     const auto& E = topo.edges();
     std::vector<unsigned char> sharp(E.size(), 0);
     // The crease angle implied by the threshold: s = tan²(φ/2) for a symmetric edge.
-    const Scalar crease_cos = std::cos(2 * std::atan(std::sqrt(st.threshold)));
+    const Scalar crease_cos = std::cos(2 * std::atan(std::sqrt(st.edge_threshold)));
     parallel_for(0, E.size(), [&](std::size_t e) {
         const Index a = E[e][0], b = E[e][1];
         if (a == b) return;
         const auto ef = topo.edge_faces(e);
-        if (!st.boundary_edges && ef.size() < 2) return;
+        if (!st.boundary_edges_sharp && ef.size() < 2) return;
         if (st.crease_test && ef.size() >= 2) {
             // Every pair of the edge's faces; for a non-manifold edge with more than 64
             // faces, the pairs with one of its first 64 (bounded cost).
@@ -501,13 +492,13 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
         if (!(len > 0)) return;
         d /= len;
         for (Index v : {a, b})
-            if (out.strength[v] >= st.threshold &&
-                (st.crease_test || std::abs(d.dot(out.eigenvectors[v][2])) >= st.direction)) {
+            if (out.strength[v] >= st.edge_threshold &&
+                (st.crease_test || std::abs(d.dot(out.eigenvectors[v][2])) >= st.direction_threshold)) {
                 sharp[e] = 1;
                 return;
             }
     }, 4096);
-    for (std::size_t v = 0; v < nv; ++v) out.candidate_vertices += out.strength[v] >= st.threshold;
+    for (std::size_t v = 0; v < nv; ++v) out.candidate_vertices += out.strength[v] >= st.edge_threshold;
     for (std::size_t e = 0; e < E.size(); ++e)
         if (sharp[e]) out.sharp_edges.push_back(E[e]);
     progress.update(to);
@@ -691,7 +682,7 @@ namespace kintsugi::detail::fbs {
 /// the creases rather than the noise. Connectivity is shared, so the sharp edges found
 /// on the copy are the input's edges.
 inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const std::vector<Face>& F,
-                                               const MeshTopology& topo, Scalar L, const FeatureSettings& st,
+                                               const MeshTopology& topo, Scalar L, const SharpFeatureParams& st,
                                                const FilterSettings& fs, std::size_t presmooth,
                                                const std::vector<unsigned char>& has_face, Progress& progress,
                                                Workspace& ws) {

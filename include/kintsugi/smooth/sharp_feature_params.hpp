@@ -1,0 +1,49 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+#pragma once
+/// @file sharp_feature_params.hpp
+/// @brief The settings of the sharp-edge detection (normal voting tensor) that
+/// kintsugi::detect_sharp_features and kintsugi::smooth_feature_bilateral share; both
+/// are in smooth/feature_bilateral.hpp, and docs/methods/feature_bilateral.md gives the
+/// measurements behind the defaults.
+
+#include <kintsugi/core/control.hpp>
+#include <kintsugi/core/types.hpp>
+
+#include <cstddef>
+
+namespace kintsugi {
+
+/// The sharp-edge detection's settings: the parameters of detect_sharp_features() and
+/// FeatureBilateralParams::detection (the one place they are kept, with their defaults).
+struct SharpFeatureParams {
+    /// Side of the voting cube, in mean edge lengths. Paper: 3 (synthetic noise), 9 (scan).
+    Scalar voting_cube = 3;
+    /// Edge-strength threshold for edge-candidate vertices. Paper: 0.251 (synthetic
+    /// noise; ≈ edges sharper than 53°), 0.102 for its real scan (≈ 35°).
+    Scalar edge_threshold = 0.251;
+    /// |d_e · e3| needed for a mesh edge at a candidate vertex to be sharp (paper: 0.9).
+    /// Used when crease_test is false.
+    Scalar direction_threshold = 0.9;
+    /// Whether boundary edges may be sharp edges (default: never).
+    bool boundary_edges_sharp = false;
+    /// Passes of filter 3 on the face normals before voting (0 = the paper: raw normals).
+    std::size_t prefilter_iterations = 3;
+    /// Spatial scale c of that filter and of the pre-smoothing, in mean edge lengths.
+    Scalar prefilter_scale = 2;
+    /// true: a sharp edge needs its two faces' (filtered) normals at least
+    /// 2·atan(√edge_threshold) apart instead of the direction test (false = the paper).
+    bool crease_test = true;
+    /// Passes of filters 3–4 on a copy of the mesh before voting (0 = the paper).
+    std::size_t presmooth_iterations = 3;
+    /// Range scale d of that pre-smoothing (σ_g = d|e|).
+    Scalar presmooth_range = 0.45;
+    /// Spatial scale c of the pre-smoothing's vertex filter (its normal filter uses
+    /// prefilter_scale), in mean edge lengths.
+    Scalar presmooth_vertex_scale = 1;
+    RunControl control{};
+};
+
+
+}  // namespace kintsugi
