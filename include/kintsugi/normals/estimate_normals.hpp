@@ -13,37 +13,11 @@
 /// // r.components: kNN-graph components, each oriented outward-by-its-top-point
 /// @endcode
 ///
-/// How it is built, and why (measured with bench/bench_normals.cpp on gargoyle.ply,
-/// 95K points, k = 18, CGAL 5.5 called directly in the same run; see the report
-/// numbers in that file's header):
-/// - Neighbours: kintsugi::KdTree (nanoflann), queried in parallel into one n×(k+1)
-///   table that fitting and orientation share. CGAL's functions each build their
-///   own CGAL kd-tree, and mst_orient_normals queries its tree again.
-/// - PCA: the covariance's smallest eigenvector with Eigen (closed form, iterative
-///   fallback), the same fit and the same neighbourhoods as CGAL's
-///   pca_estimate_normals (the point and its k nearest): normals agree to 3e-8 rad
-///   on the kitten scan (tests/normals). Calling CGAL's function costs its own
-///   tree for a 10-line Eigen computation.
-/// - Jet: Cazals & Pouget's degree-2 Monge fit exactly as CGAL's
-///   Monge_via_jet_fitting (PCA frame, origin at the point, CGAL's
-///   preconditioning), solved with Eigen's column-pivoting QR instead of CGAL's
-///   JacobiSVD. Measured per point on the same neighbour table: CGAL's class
-///   1.59 s, the same fit with JacobiSVD 1.08 s, with QR 0.25 s for 95K points,
-///   all three within 3e-8 rad of each other; tests check the result against
-///   CGAL's jet_estimate_normals to 1e-6 rad.
-/// - Orientation: CGAL's mst_orient_normals orients only the kNN-graph component
-///   that holds its seed and leaves the others unoriented (it also drops graph
-///   edges j→i with j < i unless i is among j's neighbours, which can split a
-///   component: on gargoyle.ply, whose symmetric graph is one component, it left
-///   1 point unoriented), and it reorders the
-///   user's range. kintsugi orients every component: the symmetric Riemannian
-///   graph (i ~ j when either is among the other's k nearest, weight 1 - |ni·nj|,
-///   Hoppe et al. 1992), one Boost.Graph Prim run from a virtual root joined to
-///   each component's top-most point (oriented +z, CGAL's seed rule), signs
-///   propagated in Prim's visiting order. One run instead of one CGAL call per
-///   component (each rebuilding a tree over its component); the neighbour table
-///   is reused. Measured (single-thread CPU): orientation alone 255 ms vs 870 ms
-///   for mst_orient_normals; pca + orient 442 vs 1344 ms; jet + orient 613 vs 2776 ms.
+/// Neighbours: one n×(k+1) table from kintsugi::KdTree (or the caller's SpatialIndex),
+/// shared by fitting and orientation. PCA as CGAL's pca_estimate_normals (same fit, same
+/// neighbourhoods); jet as CGAL's Monge_via_jet_fitting, solved with Eigen's QR; the
+/// orientation orients every kNN-graph component (CGAL's mst_orient_normals orients only
+/// the seed's). Why, and the timings against CGAL: docs/methods/normals.md.
 /// Licence: this header uses Eigen, Boost.Graph and nanoflann only (no GPL code).
 ///
 /// Deterministic: the output is bit-identical whatever the thread count.

@@ -71,77 +71,34 @@ struct PUGraphcutParams {
     Labeling labeling = Labeling::graphcut;
     /// Progress callback and cancellation.
     RunControl control{};
-    /// A support holding fewer input points than this is not trusted to tell inside
-    /// from outside (an outlier's support, or an empty one far from the data). The
-    /// terminal links (eq. 8, 9) of its vertex use instead the median signed distance
-    /// to the tangent planes of the 7 nearest trusted supports (a robust form of Hoppe
-    /// et al. 1992); edge capacities (eq. 10) and vertex placement use the PU field with
-    /// the untrusted supports down-weighted (untrusted_weight).
-    /// The paper trusts every support (0 here) and works with a few outliers; with 10 %
-    /// uniform outliers the untrusted supports fill the empty space with wrong-signed
-    /// values that no constant k overcomes (the paper's admitted weakness, its Fig. 12).
-    /// 10 is the paper's own "too few points" threshold (§2.3, smoothing).
+    // The measurements behind the defaults below: docs/methods/pu_graphcut.md.
+    /// A support holding fewer input points than this is not trusted to tell inside from
+    /// outside: its vertex's terminal links (eq. 8, 9) use the median signed distance to
+    /// the tangent planes of the 7 nearest trusted supports. >= 0; default 10, the paper's
+    /// "too few points" (§2.3); the paper trusts every support (0), which 10 % uniform
+    /// outliers defeat.
     std::size_t min_support_points = 10;
-    /// A support is trusted only if its points' normals also agree: PUSupport::coherence
-    /// = |Σ w n| / Σ w at least this (in [0, 1]; 0 disables). Coarse cells far from the
-    /// data get supports of radius 0.75 x their diagonal that hold dozens of outliers:
-    /// enough points, but normals pointing anywhere (coherence about 1/sqrt(count)),
-    /// and one such support inside the bunny carved a tunnel through a hole in the
-    /// scan (bunny00, 10 % outliers: Hausdorff 15 % of the diagonal -> 1.5 % with 0.8
-    /// and the 7-plane median). A surface patch within ε has coherence above 0.95.
+    /// A support is trusted only if its normals agree too: PUSupport::coherence =
+    /// |Σ w n| / Σ w at least this. In [0, 1], 0 disables; default 0.8 (a surface patch
+    /// has more than 0.95; outlier supports far from the data about 1/sqrt(count)).
     Scalar min_support_coherence = 0.8;
-    /// Step 4 triangulates the support centres c_i with weights (s · r_i)², s this
-    /// scale, in [0, 1]. The paper's s = 1 hides small supports inside big ones, which
-    /// shrinks the graph by about 15 %, but the hidden nodes are the ones a thin part
-    /// (an ear) needs: where a thin plate loses its inside nodes the cut perforates it,
-    /// and each perforation is a handle. s = 0 (the default) keeps every support (a
-    /// Delaunay triangulation of the centres). Measured on the 9 merged bunny scans
-    /// (327K points): genus 5 with s = 1, 1 with 0.7, 0 with 0; on bunny00 sampled with
-    /// 10 % outliers and 3 holes (3 seeds), mean distance 0.048-0.051 % -> 0.037-0.041 %
-    /// of the diagonal and genus 2-5 -> 0-1.
+    /// Scale s of the weights (s · r_i)² of the step-4 triangulation of the support
+    /// centres. In [0, 1]; default 0 (every support kept, a Delaunay triangulation);
+    /// the paper's 1 hides the small supports a thin part needs, and the cut then
+    /// perforates it (handles).
     Scalar triangulation_weight_scale = 0;
-    /// After the cut (Labeling::graphcut only): connected inside regions of the
-    /// triangulation with fewer vertices than this fraction of the largest one become
-    /// outside, and enclosed outside regions (cavities) that small become inside.
-    /// Outliers that cluster by chance leave such specks — bubbles of a few
-    /// tetrahedra — that the constant k of eq. 8-9 keeps; 0 disables (the paper).
+    /// After the cut (Labeling::graphcut only): inside regions with fewer vertices than
+    /// this fraction of the largest become outside, and cavities that small inside.
+    /// In [0, 1], 0 disables (the paper); default 0.01: clustered outliers leave such specks.
     Scalar min_region_fraction = 0.01;
-    /// Weight factor, in [0, 1], of the untrusted supports (min_support_points,
-    /// min_support_coherence) in the PU field of eq. 1 used for the edge capacities
-    /// (eq. 10) and the vertex placement (step 6): w_i becomes untrusted_weight x w_i.
-    /// Where a trusted support covers x it then decides f(x); where none does, the
-    /// untrusted ones still give a continuous field. 1 is the paper's field. An
-    /// outlier's support (one point, a random normal) blends a wrong plane into f
-    /// over its whole ball: on bunny00 with 10 % outliers the centre of a trusted
-    /// support 1.5 % of the diagonal inside the surface had f = 0.005 instead of 0.024
-    /// (four outlier supports overlap it), and the surface was placed near it (isolated
-    /// spikes of 0.6-1.0 % of the diagonal). Measured with the fill below, seeds 7, 1,
-    /// 2, 3: result->truth Hausdorff 1.15, 1.02, 2.40, 1.29 % with 1 -> 0.67, 0.72,
-    /// 0.61, 0.95 % with 1e-3; mean 0.037-0.039 % -> 0.035-0.036 %.
+    /// Factor on the weight of the untrusted supports in the PU field used for the edge
+    /// capacities (eq. 10) and the vertex placement (step 6). In [0, 1], 1 is the
+    /// paper's field; default 1e-3: where a trusted support covers x it decides f(x).
     Scalar untrusted_weight = 1e-3;
-    /// Hole fill: mesh vertices farther than fill_radius_fraction x r_i from the
-    /// centre c_i of every trusted support (in [0, 1]; 0 disables) have no data near
-    /// them: they lie where a hole removed the data and only outliers are left, and
-    /// there the field is the linear extrapolation of the rim's planes (which
-    /// overshoots a convex hole by about a²/2R: a cone, or the corner of two planes)
-    /// or the blend of outlier supports. They take the positions of a thin-plate
-    /// patch instead: minimum of Σ |L x|² (L the uniform umbrella operator) with the
-    /// other vertices fixed, which continues the position and slope of the surface
-    /// around the hole. Then the selective smoothing (step 7) moves the other movable
-    /// vertices. Measured on bunny00 (10 % outliers, 3 holes of radius 4 % of the
-    /// diagonal), seeds 7, 1, 2, 3, result->truth Hausdorff: 2.55, 0.80, 2.02, 1.37 %
-    /// without the fill -> 0.67, 0.72, 0.61, 0.95 % with 0.75 (and 0.95, 0.59, 0.98 % on
-    /// seeds 4, 5, 6, which had 1.20, 2.76, 0.94 % before both changes). 0.8 and 0.9
-    /// also keep the seven seeds below 1 % (largest 0.96 and 0.98 %); 0.6 fills 2,400
-    /// vertices instead of 400-500 and raises the mean by 0.002 %. About 20 ms at 100K
-    /// points and 80 ms at 2M (bench_reconstruct: smoothing stage 0.14 s with the fill,
-    /// 0.06 s before; with both changes that 2M run gives mean 0.024 -> 0.013 % and
-    /// Hausdorff 3.1 -> 0.82 % in 30.1 s, 2.0 GB peak). Both changes together on the
-    /// sphere and torus of the tests (20K points, 0.1 % noise, 10 % outliers): mean
-    /// 0.065 / 0.054 % -> 0.054 / 0.046 % of the diagonal, max 1.18 / 0.75 % -> 0.82 /
-    /// 0.35 %. Sparse data have few trusted supports and many vertices count as
-    /// unsupported: 3,000 points on the torus at level 6 fill 41 % of the vertices, max
-    /// 1.38 -> 0.83 %, mean 0.086 -> 0.108 %.
+    /// Hole fill: mesh vertices farther than this fraction of r_i from the centre of
+    /// every trusted support take the positions of a thin-plate patch (minimum of
+    /// Σ |L x|², the other vertices fixed) before the smoothing. In [0, 1], 0 disables;
+    /// default 0.75: there the field is an extrapolation or a blend of outliers.
     Scalar fill_radius_fraction = 0.75;
     /// Separated parts, in [0, 1] (0: one octree cube around every point, the paper):
     /// the points are split, recursively, at empty slabs (along x, y or z) wider than

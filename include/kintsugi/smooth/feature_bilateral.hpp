@@ -58,81 +58,28 @@
 /// pass reads the values of the previous one (Jacobi updates), so the result does not
 /// depend on the thread count.
 ///
-/// ## Departures from the paper, each measured
-/// All figures: the guided-denoising pairs Block0.4, SharpSphere0.3, Twelve0.5Impulsive
-/// (noise 0.3–0.5|e|, three to five times the paper's |e|/10), mean angle between
-/// face normals and the clean mesh's (MSAE), vertex RMS in |e|, precision/recall (P/R)
-/// of the sharp edges found on the noisy Block against the clean mesh's edges above 60°.
-///
-/// *Detection under heavy noise* (SharpFeatureParams). The paper's detection (raw
-/// normals, direction test) gives P/R 0.12/0.61 on the noisy Block. We vote on a
-/// pre-smoothed copy: `presmooth_iterations` (3) passes of filters 3–4 with c = 2 for
-/// the normals (`prefilter_iterations` = 3 filter-3 passes each), c = 1 for the vertices
-/// (`presmooth_vertex_scale`) and d = 0.45, then filter 3 again on that copy, and a mesh
-/// edge is sharp when its two faces' filtered normals are at least 2·atan(√threshold)
-/// apart (`crease_test`, 53° at 0.251) instead of the direction test. P/R: prefilter
-/// only 0.49/0.75; pre-smoothing with c = 2 for the vertices 0.918/0.918; with c = 1
-/// 0.928/0.924 (and ~10 % faster). Twelve's 63° creases under impulsive noise are not
-/// found (recall 0.015): the pre-smoothing rounds them (median s on them 0.07 after
-/// it), and without it the impulses look like creases (median s elsewhere 0.44).
-/// Gentler pre-smoothing does not recover them without losing the Block: range
-/// d = 0.3 / 0.2 gives Twelve recall 0.03 / 0.05 (Block P/R 0.927/0.910, 0.878/0.900);
-/// threshold 0.15 gives 0.03; prefilter c = 1.5 with d = 0.3 gives 0.10 (Block
-/// 0.895/0.875); c = 1 gives 0.18 (Block 0.796/0.777).
-///
-/// *Sharp edges bound the face filters* (`separate_features`, default on). In
-/// filters 3 and 4 a face of the cube counts only if it is reached from r's own faces
-/// by a walk over faces inside the cube that crosses no sharp edge: the paper's
-/// "g = 0 when Y > 1, the neighbour is on another feature" decided by the detected
-/// edges rather than by the noisy normals (at this noise, normals across a 90° crease
-/// often differ by less than 60°). Without it, `features = true` was 0.1° better than
-/// `features = false`; with it, 1.4° better on Block0.4 (5.54° vs 6.93°).
-///
-/// *Face filter scales* (c, d, iteration counts). The paper's (c, d) = (2, 0.1), one
-/// filter-3 pass and two face iterations leave 24–30° MSAE at this noise. c ≥ 1.5
-/// rounds curved parts (SharpSphere 10.4° at c = 1.5) and the undetected creases of
-/// Twelve (volume +0.65 %). c = 1 with ten filter-3 passes per face iteration (five:
-/// +2°), three face iterations (two: +3°) and two filter-4 passes per iteration
-/// (one: Twelve 8.66°, behind Taubin's 8.12°) measured best. d: 0.1 (the paper) gives
-/// 6.50° / 9.03° / 8.63°; 0.14 gives 5.54° / 8.46° / 8.02° with volume changes
-/// +0.14 % / −0.11 % / +0.44 %; 0.15 and above push Twelve's volume past +0.49 %
-/// (its undetected concave creases get rounded).
-///
-/// *Edge vertices in filter 4.* Keeping the sharp-edge vertices out of filter 4 (the
-/// paper's reading, `keep_edge_vertices`) measured worse (7.75° vs 5.54° on Block0.4,
-/// 9.93° vs 8.46° on SharpSphere0.3): after filters 1–2 they keep most of their noise
-/// across the crease, whatever b (b = 0.3: 5.49° / 8.68°), so they take part in
-/// filter 4 by default, where the separation above lets them see the faces of both
-/// sides. Filters 1–2 themselves then add little: without them (`edge_iterations` = 0)
-/// Block0.4 gives 5.62° instead of 5.54°.
+/// ## Departures from the paper
+/// Each is measured on the guided-denoising pairs (Block0.4, SharpSphere0.3,
+/// Twelve0.5Impulsive, noise 3-5 times the paper's); the figures, the values tried and
+/// the cost are in docs/methods/feature_bilateral.md.
+/// - Detection under heavy noise (SharpFeatureParams): the votes are taken on a
+///   pre-smoothed copy (`presmooth_*`, `prefilter_*`), and a mesh edge is sharp when its
+///   two faces' filtered normals are at least 2·atan(√edge_threshold) apart
+///   (`crease_test`) instead of the direction test.
+/// - Sharp edges bound the face filters (`separate_features`): in filters 3 and 4 a face
+///   of the cube counts only when a walk over the cube's faces reaches it from r's own
+///   faces without crossing a sharp edge.
+/// - Face filter scales: c = 1, d = 0.14, ten filter-3 and two filter-4 passes per face
+///   iteration, three face iterations (paper: c = 2, d = 0.1, one, one, two).
+/// - Sharp-edge vertices take part in filter 4 (`keep_edge_vertices` = false).
 ///
 /// ## Neighbourhoods and cost
-/// Cube neighbourhoods come from a uniform grid hash (cell = the cube's half side, the
-/// non-empty cells around each cell precomputed by walks over the sorted cell keys),
-/// on an internal copy of the mesh renumbered along a Morton curve. A query tests the
-/// points of its 3×3×3 cells in single precision, four at a time (SSE2), without a
-/// branch on the outcome. Filter 3 gathers each face's cube into chunked neighbour
-/// lists, then runs its passes in single precision over them, four neighbours at a
-/// time, with g evaluated as a polynomial (exp(x) = p(x/8)⁸, relative error ~1e-6).
-/// *Neighbour sets per stage:* the sets are gathered at the first iteration of each
-/// stage (the pre-smoothing, whose sets also serve the detection's prefilter, and the
-/// face smoothing); later iterations keep them and recompute their spatial weights
-/// a_t*·f from the moved positions. A face that moves across a cube's border within a
-/// stage keeps or misses a neighbour whose weight is at most e^-2 there. Measured
-/// against regathering every iteration: Block0.4 5.51° / 0.144 vs 5.54° / 0.145, P/R
-/// 0.930/0.926 vs 0.928/0.924, SharpSphere0.3 8.37° vs 8.46°, Twelve 7.99° vs 8.02°,
-/// for about 15 % less time.
-/// Every output element is computed from the previous pass's values in a fixed
-/// neighbour order (Jacobi updates), so the result does not depend on the thread count.
-/// Filter 4 gathers the faces around each vertex once per face iteration and keeps them
-/// for its second pass; the pre-smoothing keeps them for its whole stage (Block0.4
-/// 5.47°, P/R 0.936/0.925, SharpSphere0.3 8.34°: slightly better). Keeping them for the
-/// whole face-smoothing stage too was 15 % faster but moved Twelve0.5Impulsive from
-/// 7.99° to 8.10°. Memory is linear: about 1.2 KB per face at peak (167 MB at 147K
-/// faces, 657 MB at 590K). Time at 589,824 faces (bench/bench_smooth.cpp, 2-core
-/// machine otherwise idle, three runs): 3.5–3.9 s wall, 6.6–7.3 s of CPU over both
-/// threads (detection 1.7–1.9 s, face smoothing 1.6–1.7 s); the same filters without
-/// features 1.75 s; Taubin(30) 0.36 s. The paper reports 255 s for its 612K-face scan.
+/// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
+/// renumbered along a Morton curve; neighbour sets are gathered once per stage and
+/// their weights recomputed each pass. Memory and time are linear in the faces, and
+/// the cost of each element is bounded (repeated faces, fans, long polygons). Every
+/// output element is computed from the previous pass's values in a fixed neighbour
+/// order (Jacobi updates), so the result does not depend on the thread count.
 ///
 /// ## Boundaries, non-manifold input, degenerate faces
 /// Boundary edges are never sharp unless `boundary_edges_sharp`. Boundary vertices are
