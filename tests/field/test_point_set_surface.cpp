@@ -116,8 +116,9 @@ TEST_CASE_TEMPLATE("MLS projection of a sphere with 0.5 % noise lands within 0.0
                                                         << " %, p99 " << 100 * a.p99 << " %, max " << 100 * a.max
                                                         << " % of the diagonal; normal error mean " << n.mean
                                                         << " rad; unconverged " << r.unconverged);
-    CHECK(a.mean < 0.0005);  // the acceptance bound
-    CHECK(a.p99 < 0.002);
+    CHECK(a.mean < 0.0005);  // the acceptance bound (0.05 %); measured 0.0350 %
+    CHECK(a.p99 < 0.0012);   // measured 0.1108 %
+    CHECK(a.max < 0.002);    // measured 0.1807 %
     CHECK(n.mean < 0.05);
     CHECK(r.unconverged == 0);
 }
@@ -140,8 +141,9 @@ TEST_CASE("MLS projection of the bunny with 0.5 % noise lands within 0.05 % of t
                                                                     << " %, max " << 100 * apss.max << " %; plane MLS mean "
                                                                     << 100 * plane.mean << " %, p99 " << 100 * plane.p99
                                                                     << " %");
-    CHECK(apss.mean < 0.0005);  // the acceptance bound
-    CHECK(apss.p99 < 0.002);
+    CHECK(apss.mean < 0.0005);  // the acceptance bound (0.05 %); measured 0.0429 %
+    CHECK(apss.p99 < 0.0016);   // measured 0.1500 %
+    CHECK(apss.max < 0.0035);   // measured 0.3214 %
     CHECK(apss.mean < plane.mean);  // the sphere fit follows the ears and the back
 }
 

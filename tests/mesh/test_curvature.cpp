@@ -7,11 +7,15 @@
 
 #include "analytic_shapes.hpp"
 
+#include <kintsugi/adapters/cgal.hpp>
 #include <kintsugi/adapters/eigen.hpp>
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/mesh/curvature.hpp>
 #include <kintsugi/spatial/jet_fit.hpp>
+
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
 
 #include <algorithm>
 #include <cmath>
@@ -25,6 +29,7 @@ using kintsugi_test::Sphere;
 using kintsugi_test::Torus;
 using ks::Scalar;
 using ks::Vec3;
+using SurfaceMesh = CGAL::Surface_mesh<CGAL::Simple_cartesian<double>::Point_3>;
 
 namespace {
 
@@ -138,13 +143,20 @@ TEST_CASE_TEMPLATE("point-set curvature on a sphere and a torus is within 2 % of
 }
 
 TEST_CASE_TEMPLATE("mesh curvature on a sphere and a torus is within 2 % of the analytic values", Kind, ks::IndexedMesh,
-                   ks::EigenMeshView<const Eigen::MatrixXd, Eigen::MatrixXi>) {
+                   ks::EigenMeshView<const Eigen::MatrixXd, Eigen::MatrixXi>, SurfaceMesh) {
     const Sphere sphere{2.0};
     const Torus torus{1.0, 0.4};
     auto run = [&](const auto& shape, const ks::IndexedMesh& m, const std::string& name) {
         ks::CurvatureResult r;
         if constexpr (std::is_same_v<Kind, ks::IndexedMesh>) {
             r = ks::estimate_curvatures(m);
+        } else if constexpr (std::is_same_v<Kind, SurfaceMesh>) {
+            SurfaceMesh sm;
+            for (const Vec3& p : m.vertices) ks::mesh_traits<SurfaceMesh>::add_vertex(sm, p);
+            for (const ks::Face& f : m.faces) ks::mesh_traits<SurfaceMesh>::add_face(sm, f);
+            REQUIRE(sm.number_of_vertices() == m.vertices.size());
+            REQUIRE(sm.number_of_faces() == m.faces.size());
+            r = ks::estimate_curvatures(sm);
         } else {
             Eigen::MatrixXd V(m.vertices.size(), 3);
             Eigen::MatrixXi F(m.faces.size(), 3);
