@@ -28,6 +28,12 @@ template <class Mat>
     const auto r = static_cast<Eigen::Index>(i);
     return Vec3(static_cast<Scalar>(A(r, 0)), static_cast<Scalar>(A(r, 1)), static_cast<Scalar>(A(r, 2)));
 }
+/// Writes p into row i of an n x 3 matrix (any scalar type).
+template <class Mat>
+void set_row(Mat& A, std::size_t i, const Vec3& p) {
+    const auto r = static_cast<Eigen::Index>(i);
+    for (int c = 0; c < 3; ++c) A(r, c) = static_cast<typename Mat::Scalar>(p[c]);
+}
 }  // namespace detail
 
 /// Non-owning V/F view. `MatV` may be const (read-only view).
@@ -62,9 +68,7 @@ struct mesh_traits<EigenMeshView<MatV, MatF>> {
     static void set_position(const View& m, Index v, const Vec3& p)
         requires(!std::is_const_v<MatV>)
     {
-        using S = typename MatV::Scalar;
-        const auto r = static_cast<Eigen::Index>(v);
-        for (int c = 0; c < 3; ++c) (*m.V)(r, c) = static_cast<S>(p[c]);
+        detail::set_row(*m.V, v, p);
     }
 };
 
@@ -108,9 +112,7 @@ struct point_set_traits<EigenPointsView<MatP, MatN>> {
     static void set_normal(const View& v, std::size_t i, const Vec3& n)
         requires(!std::is_const_v<MatN>)
     {
-        using S = typename MatN::Scalar;
-        const auto r = static_cast<Eigen::Index>(i);
-        for (int c = 0; c < 3; ++c) (*v.N)(r, c) = static_cast<S>(n[c]);
+        detail::set_row(*v.N, i, n);
     }
 };
 

@@ -232,13 +232,29 @@ inline void note_ignored(ReadInfo& info, std::string_view raw) {
     return buf.begin();
 }
 
+/// A read position in a text buffer and the number of the current line: what the line
+/// reader below and PLY's token cursor share.
+class TextPosition {
+public:
+    /// Number of the current line (1-based; 0 before the first line is read).
+    [[nodiscard]] std::size_t line() const { return line_; }
+    /// Bytes not yet consumed.
+    [[nodiscard]] std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
+
+protected:
+    TextPosition(const char* begin, const char* end, std::size_t line) : p_(begin), end_(end), line_(line) {}
+    const char* p_;
+    const char* end_;
+    std::size_t line_;
+};
+
 /// Splits a text buffer into lines; tracks 1-based line numbers. A line ends at LF, CRLF
 /// or a lone CR (old Mac files). Strips surrounding whitespace and, when `comment` is
 /// not '\0', everything from the comment character on.
-class LineReader {
+class LineReader : public TextPosition {
 public:
     LineReader(const char* begin, const char* end, char comment, std::size_t first_line = 1)
-        : p_(begin), end_(end), comment_(comment), line_(first_line - 1) {}
+        : TextPosition(begin, end, first_line - 1), comment_(comment) {}
 
     /// Next line with content (blank and comment-only lines skipped); false at the end.
     bool next(std::string_view& out) {
@@ -270,17 +286,9 @@ public:
         }
         return false;
     }
-    /// Line number of the line last returned by next().
-    [[nodiscard]] std::size_t line() const { return line_; }
-    /// Bytes not yet consumed.
-    [[nodiscard]] std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
-
 private:
-    const char* p_;
-    const char* end_;
     const char* nl_ = nullptr;  ///< next LF at or after p_ (end_ when none), null before the first search
     char comment_;
-    std::size_t line_;
 };
 
 /// The lines of a text format (OBJ, OFF, XYZ, PWN): past a UTF-8 byte-order mark, '#'

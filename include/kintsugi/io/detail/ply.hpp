@@ -481,9 +481,9 @@ inline void ply_read_binary_body(const FileBuffer& buf, const PlyHeader& h, cons
 
 /// Whitespace-separated tokens across lines, with line numbers (lines end at LF, CRLF or
 /// a lone CR).
-class AsciiCursor {
+class AsciiCursor : public TextPosition {
 public:
-    AsciiCursor(const char* b, const char* e, std::size_t line) : p_(b), end_(e), line_(line) {}
+    AsciiCursor(const char* b, const char* e, std::size_t line) : TextPosition(b, e, line) {}
     bool next(std::string_view& out) {
         while (p_ < end_ && is_space(*p_)) {
             if (*p_ == '\n' || (*p_ == '\r' && (p_ + 1 == end_ || p_[1] != '\n'))) ++line_;
@@ -495,13 +495,6 @@ public:
         out = std::string_view(b, static_cast<std::size_t>(p_ - b));
         return true;
     }
-    [[nodiscard]] std::size_t line() const { return line_; }
-    [[nodiscard]] std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
-
-private:
-    const char* p_;
-    const char* end_;
-    std::size_t line_;
 };
 
 inline void ply_read_ascii_body(const FileBuffer& buf, const PlyHeader& h, const ReadOptions& options,
