@@ -149,6 +149,86 @@ TEST_CASE("reconstruct_pu_graphcut: torus with 10 % outliers -> one closed genus
     CHECK(sign.mean > 5 * gc.mean);
 }
 
+TEST_CASE("reconstruct_pu_graphcut: a second object 20x smaller, sampled with the part and 10 % outliers, is kept") {
+    // The torus (20K points, 0.1 % noise) and a sphere of radius 0.07 (3,000 points, the
+    // same noise in absolute terms), 0.8 beyond the torus, plus 10 % uniform outliers over
+    // both: the outliers leave no empty slab, so both are one part and one triangulation.
+    std::vector<ks::Vec3> pts, nrm, sp, sn;
+    kintsugi_test::sample_shape(Shape{1}, 20000, 0.001, 0.0, 1, pts, nrm);
+    kintsugi_test::sample_shape(Shape{0}, 3000, 0.0, 0.0, 101, sp, sn);
+    std::mt19937_64 rng(1);
+    std::normal_distribution<double> g(0, 1);
+    std::uniform_real_distribution<double> u(0, 1);
+    const double sigma = 0.001 * Shape{1}.diagonal() / std::sqrt(3.0);
+    const ks::Vec3 centre(2.2, 0, 0);
+    constexpr double radius = 0.07;
+    for (std::size_t i = 0; i < sp.size(); ++i) {
+        pts.push_back(centre + radius * sp[i] + sigma * ks::Vec3(g(rng), g(rng), g(rng)));
+        nrm.push_back(sn[i]);
+    }
+    ks::BoundingBox box;
+    for (const auto& p : pts) box.extend(p);
+    const ks::Vec3 c = box.center(), e = 1.1 * box.extent();
+    for (std::size_t i = 0, m = pts.size() / 10; i < m; ++i) {
+        pts.push_back(c + ks::Vec3((u(rng) - .5) * e.x(), (u(rng) - .5) * e.y(), (u(rng) - .5) * e.z()));
+        nrm.push_back(ks::Vec3(g(rng), g(rng), g(rng)).normalized());
+    }
+    const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK(r.parts == 1);
+    CHECK(r.removed_regions == 0);
+    const auto rep = check_guarantee(r.mesh);
+    MESSAGE("torus + small sphere: components " << rep.components << " genus " << rep.genus);
+    CHECK(rep.components == 2);
+    // Each component on its own: the faces with a vertex beyond x = 1.8 are the sphere's.
+    ks::IndexedMesh part[2];
+    for (int k = 0; k < 2; ++k) part[k].vertices = r.mesh.vertices;
+    for (const auto& f : r.mesh.faces) part[r.mesh.vertices[f[0]].x() > 1.8 ? 1 : 0].faces.push_back(f);
+    REQUIRE(!part[1].faces.empty());
+    const auto torus_rep = ks::topology_report(part[0]), sphere_rep = ks::topology_report(part[1]);
+    CHECK(torus_rep.components == 1);
+    CHECK(torus_rep.closed);
+    CHECK(torus_rep.genus == 1);
+    CHECK(sphere_rep.components == 1);
+    CHECK(sphere_rep.closed);
+    CHECK(sphere_rep.genus == 0);
+    double torus_max = 0, sphere_mean = 0;
+    std::size_t sphere_n = 0;
+    for (const auto& f : part[0].faces)
+        for (const auto v : f) torus_max = std::max(torus_max, Shape{1}.distance(r.mesh.vertices[v]));
+    for (const auto& f : part[1].faces)
+        for (const auto v : f) {
+            sphere_mean += std::abs((r.mesh.vertices[v] - centre).norm() - radius);
+            ++sphere_n;
+        }
+    sphere_mean /= static_cast<double>(sphere_n);
+    MESSAGE("torus max distance " << torus_max << ", sphere mean |r - 0.07| " << sphere_mean);
+    CHECK(torus_max < 0.006 * Shape{1}.diagonal());
+    CHECK(sphere_mean < 0.1 * radius);
+    // The former rule (a region under 1 % of the largest is a speck, whatever the data)
+    // deleted the sphere: its 18-27 inside vertices are all trusted supports.
+    const auto old = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm),
+                                                 {.min_region_supports = std::numeric_limits<std::size_t>::max()});
+    REQUIRE(old.status == ks::Status::ok);
+    CHECK(old.removed_regions == 1);
+    CHECK(ks::topology_report(old.mesh).components == 1);
+    // Specks are still removed: with a weak trust (3 points, any normals) the sphere with
+    // 25 % outliers leaves many outlier specks (measured 21, holding at most 3 trusted
+    // supports and never half of their vertices); the data-based rule removes every one
+    // the size rule alone removes.
+    std::vector<ks::Vec3> sp25, sn25;
+    kintsugi_test::sample_shape(Shape{0}, 20000, 0.001, 0.25, 42, sp25, sn25);
+    ks::PUGraphcutParams weak{.min_support_points = 3, .min_support_coherence = 0};
+    const auto data_rule = ks::reconstruct_pu_graphcut(ks::with_normals(sp25, sn25), weak);
+    weak.min_region_supports = std::numeric_limits<std::size_t>::max();
+    const auto size_rule = ks::reconstruct_pu_graphcut(ks::with_normals(sp25, sn25), weak);
+    MESSAGE("weak trust, 25 % outliers: specks removed " << data_rule.removed_regions << " (size rule alone "
+                                                         << size_rule.removed_regions << ")");
+    CHECK(size_rule.removed_regions >= 10);
+    CHECK(data_rule.removed_regions == size_rule.removed_regions);
+    CHECK(data_rule.mesh.faces == size_rule.mesh.faces);
+}
+
 TEST_CASE("reconstruct_pu_graphcut: inward normals give the same surface") {
     std::vector<ks::Vec3> pts, nrm;
     kintsugi_test::sample_shape(Shape{0}, 4000, 0.001, 0.0, 5, pts, nrm);

@@ -222,12 +222,16 @@ inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std:
     return inside;
 }
 
-/// Relabels small regions: connected sets (over the tet edges) of inside vertices with
-/// fewer than `fraction` x the vertices of the largest inside set become outside, and
-/// sets of outside vertices not connected to the outer layer (cavities) with fewer
-/// than that become inside. Returns the number of regions relabelled.
+/// Relabels unsupported specks: a connected set (over the tet edges) of inside
+/// vertices, or of outside vertices not connected to the outer layer (a cavity), is
+/// flipped when it has fewer than `fraction` x the vertices of the largest inside set
+/// and is not supported: fewer than `min_trusted` of its vertices are flagged in
+/// `trusted` (supports trusted to tell inside from outside), or they are fewer than
+/// half of its vertices. A small supported region is data (a small second object, a
+/// real cavity) and stays. Returns the number of regions relabelled.
 inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<std::uint8_t>& forced_out,
                                         std::vector<std::uint8_t>& inside, Scalar fraction,
+                                        const std::vector<std::uint8_t>& trusted, std::size_t min_trusted,
                                         const std::stop_token& stop = {}) {
     const std::size_t nv = tm.vertices.size();
     std::vector<std::size_t> off(nv + 1, 0);
@@ -246,7 +250,7 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
     }
     constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
     std::vector<std::size_t> region(nv, none);
-    std::vector<std::size_t> size;
+    std::vector<std::size_t> size, supported;
     std::vector<std::uint8_t> label, touches_outer;
     std::vector<Index> stack;
     for (std::size_t s = 0; s < nv; ++s) {
@@ -254,6 +258,7 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
         if (region[s] != none) continue;
         const std::size_t id = size.size();
         size.push_back(0);
+        supported.push_back(0);
         label.push_back(inside[s]);
         touches_outer.push_back(0);
         region[s] = id;
@@ -262,6 +267,7 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
             const Index v = stack.back();
             stack.pop_back();
             ++size[id];
+            supported[id] += trusted[v] != 0;
             if (forced_out[v]) touches_outer[id] = 1;
             for (std::size_t k = off[v]; k < off[v + 1]; ++k) {
                 const Index w = adj[k];
@@ -279,7 +285,8 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
     std::vector<std::uint8_t> flip(size.size(), 0);
     std::size_t flipped = 0;
     for (std::size_t r = 0; r < size.size(); ++r)
-        if (size[r] < limit && (label[r] || !touches_outer[r])) {
+        if (size[r] < limit && (supported[r] < min_trusted || 2 * supported[r] < size[r]) &&
+            (label[r] || !touches_outer[r])) {
             flip[r] = 1;
             ++flipped;
         }
