@@ -249,9 +249,99 @@ TEST_CASE("bad input throws invalid_input naming the function and leaves the inp
     bad_radius.radii[9] = 0;
     throws_with(bad_radius, {.radius = 0.1}, "radius of surfel 9");
     throws_with(ks::PointCloud{}, {.radius = 0.1}, "no surfels");
+    ks::SurfelFillParams wide{.radius = 0.1};
+    wide.mls_support_factor = 9;
+    throws_with(in, wide, "params.mls_support_factor = 9");
+    wide.mls_support_factor = 0.5;
+    throws_with(in, wide, "params.mls_support_factor = 0.5");
+    // The sphere's diagonal is 2 sqrt(3) ~ 3.46: a larger radius is refused.
+    throws_with(in, {.radius = 4}, "larger than the input's bounding-box diagonal");
+    // 1e-6 of the diagonal on the unit sphere: ~4e11 disks; the message names the count.
+    throws_with(in, {.radius_rel = 1e-6}, "asks for about");
+    ks::SurfelFillParams none{.radius = 0.1};
+    none.max_output_surfels = 0;
+    throws_with(in, none, "params.max_output_surfels");
     CHECK(in.points == copy.points);
     CHECK(in.normals == copy.normals);
     CHECK_THROWS_AS((void)ks::surfel_coverage(no_normals, in.points), ks::invalid_input);
+    // surfel_coverage shares the checks and their messages (core/surfel_input.hpp).
+    auto coverage_throws_with = [&](const ks::PointCloud& c, const std::string& what) {
+        try {
+            (void)ks::surfel_coverage(c, in.points);
+            FAIL("no exception for " << what);
+        } catch (const ks::invalid_input& e) {
+            const std::string msg = e.what();
+            CHECK(msg.find("kintsugi::surfel_coverage") == 0);
+            CHECK_MESSAGE(msg.find(what) != std::string::npos, msg);
+        }
+    };
+    coverage_throws_with(bad_radius, "radius of surfel 9");
+    ks::PointCloud zero_normal_r = bad_radius;
+    zero_normal_r.radii[9] = 0.1;
+    zero_normal_r.normals[3].setZero();
+    coverage_throws_with(zero_normal_r, "normal of surfel 3");
+    coverage_throws_with(in, "no radii");
+}
+
+TEST_CASE("max_output_surfels caps the output: a fill passing it stops with invalid_input") {
+    const ks::PointCloud in = fibonacci_sphere(154);
+    ks::SurfelFillParams p{.radius_rel = 0.018};
+    p.max_output_surfels = 1000;  // the fill needs 1,747
+    try {
+        (void)ks::fill_surfel_gaps(in, p);
+        FAIL("no exception for a cap of 1,000 surfels");
+    } catch (const ks::invalid_input& e) {
+        CHECK_MESSAGE(std::string(e.what()).find("max_output_surfels = 1000") != std::string::npos, e.what());
+    }
+    p.max_output_surfels = 2000;
+    const ks::SurfelFillResult r = ks::fill_surfel_gaps(in, p);
+    CHECK(r.surfels.points.size() <= 2000);
+    CHECK(r.coverage_verified);
+}
+
+TEST_CASE("a huge input radius counts as 4x the fill radius in the gap tests and is kept in the output") {
+    const ks::PointCloud sphere = fibonacci_sphere(154);
+    const double rad = 0.05;
+    ks::PointCloud huge = sphere, capped = sphere;
+    huge.radii.assign(sphere.points.size(), rad);
+    capped.radii = huge.radii;
+    huge.radii[10] = 1e6;      // would make every neighbour search see every surfel
+    capped.radii[10] = 4 * rad;
+    const ks::SurfelFillResult a = ks::fill_surfel_gaps(huge, {.radius = rad});
+    const ks::SurfelFillResult b = ks::fill_surfel_gaps(capped, {.radius = rad});
+    REQUIRE(a.status == ks::Status::ok);
+    CHECK(a.surfels.points == b.surfels.points);
+    CHECK(a.surfels.radii[10] == 1e6);
+    CHECK(b.surfels.radii[10] == doctest::Approx(4 * rad));
+    CHECK(a.coverage_verified);
+}
+
+TEST_CASE("an open surface: coverage_verified is false and uncovered_surfels lists the border") {
+    // The upper half of the unit sphere: beyond max_distance_rel of the border no disk
+    // is placed, so the surfels there keep an uncovered arc.
+    const ks::PointCloud sphere = fibonacci_sphere(600);
+    ks::PointCloud cap;
+    for (std::size_t i = 0; i < sphere.points.size(); ++i)
+        if (sphere.points[i].z() > 0) {
+            cap.points.push_back(sphere.points[i]);
+            cap.normals.push_back(sphere.normals[i]);
+        }
+    const ks::SurfelFillResult r = ks::fill_surfel_gaps(cap, {.radius = 0.08});
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK_FALSE(r.coverage_verified);
+    REQUIRE_FALSE(r.uncovered_surfels.empty());
+    CHECK(std::is_sorted(r.uncovered_surfels.begin(), r.uncovered_surfels.end()));
+    double highest = -1;
+    for (std::size_t i : r.uncovered_surfels) highest = std::max(highest, r.surfels.points[i].z());
+    MESSAGE("open cap: " << r.surfels.points.size() << " surfels, " << r.uncovered_surfels.size()
+                         << " uncovered, highest z " << highest);
+    // The diagonal of the cap is ~2.45, max_distance_rel 0.1: the fill ends within
+    // ~0.25 of the border z = 0, and only there are surfels left uncovered.
+    CHECK(highest < 0.1);
+    // A closed surface: verified and nothing listed.
+    const ks::SurfelFillResult closed = ks::fill_surfel_gaps(sphere, {.radius = 0.08});
+    CHECK(closed.coverage_verified);
+    CHECK(closed.uncovered_surfels.empty());
 }
 
 TEST_CASE("cancellation: status cancelled, no output, input untouched") {
@@ -292,8 +382,12 @@ TEST_CASE("levels of detail: every prefix covers the sphere at its own radius") 
     CHECK(r.level_counts[0] < r.level_counts[1]);
     CHECK(r.level_counts[1] < r.level_counts[2]);
     CHECK(r.level_counts[2] == r.surfels.points.size());
-    MESSAGE("levels: rounds " << r.rounds << ", not placed " << r.not_placed << ", verified " << r.coverage_verified);
-    // Two levels are verified (the third drops 46 placements on existing centres).
+    MESSAGE("levels: rounds " << r.rounds << ", not placed " << r.not_placed << ", verified " << r.coverage_verified
+                               << ", uncovered surfels " << r.uncovered_surfels.size());
+    // Placements dropped on existing centres leave no gap once the level's neighbours
+    // are all in: every level is verified.
+    CHECK(r.coverage_verified);
+    CHECK(r.uncovered_surfels.empty());
     CHECK(ks::fill_surfel_gaps(in, {.radius_rel = 0.02, .levels = 2}).coverage_verified);
     const ks::PointCloud dense = fibonacci_sphere(100000);
     for (std::size_t l = 0; l < 3; ++l) {
@@ -338,6 +432,39 @@ TEST_CASE("curvature-adaptive radii: smaller disks where a torus bends more, sti
     ks::PointCloud dense = fibonacci_sphere(100000);
     for (ks::Vec3& p : dense.points) p.z() *= 3;
     CHECK(ks::surfel_coverage(r.surfels, dense.points).uncovered.empty());
+
+    // The r_new / r' redo. The ellipsoid's curvature changes too slowly for the default
+    // threshold 1.5 within one disk (no redo above); at 1.05 the radius computed at
+    // p_i exceeds that of a new centre nearer the tip often enough and those fills are
+    // redone with r'. With the threshold out of reach no fill is redone: the disks
+    // around a surfel all take r_new, so larger disks reach the tips.
+    CHECK(r.radius_redos == 0);
+    const ks::SurfelFillResult redo =
+        ks::fill_surfel_gaps(in, {.radius = 0.2, .epsilon_r = 0.15, .radius_ratio_threshold = 1.05});
+    REQUIRE(redo.status == ks::Status::ok);
+    CHECK(redo.radius_redos > 0);
+    CHECK(redo.coverage_verified);
+    CHECK(ks::surfel_coverage(redo.surfels, dense.points).uncovered.empty());
+    const ks::SurfelFillResult never = ks::fill_surfel_gaps(in, {.radius = 0.2, .epsilon_r = 0.15, .radius_ratio_threshold = 1e9});
+    REQUIRE(never.status == ks::Status::ok);
+    CHECK(never.radius_redos == 0);
+    CHECK(never.surfels.points == r.surfels.points);  // no redo at 1.5 either: the same fill
+    CHECK(redo.surfels.points != never.surfels.points);
+    double tip_never = 0;
+    std::size_t nt_never = 0;
+    for (std::size_t i = never.input_surfels; i < never.surfels.points.size(); ++i)
+        if (std::abs(never.surfels.points[i].z()) > 2.8) tip_never += never.surfels.radii[i], ++nt_never;
+    REQUIRE(nt_never > 0);
+    double tip_redo = 0;
+    std::size_t nt_redo = 0;
+    for (std::size_t i = redo.input_surfels; i < redo.surfels.points.size(); ++i)
+        if (std::abs(redo.surfels.points[i].z()) > 2.8) tip_redo += redo.surfels.radii[i], ++nt_redo;
+    REQUIRE(nt_redo > 0);
+    MESSAGE("redo at 1.05: " << redo.surfels.points.size() << " surfels, " << redo.radius_redos << " redos, mean radius tip "
+                             << tip_redo / nt_redo << "; never: " << never.surfels.points.size()
+                             << " surfels, mean radius tip " << tip_never / nt_never);
+    CHECK(tip_redo / nt_redo < tip_never / nt_never);
+    CHECK(ks::surfel_coverage(never.surfels, dense.points).uncovered.empty());
 }
 
 TEST_CASE("surfel_coverage counts the samples inside some disk") {

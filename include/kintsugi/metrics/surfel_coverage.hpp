@@ -22,6 +22,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/surfel_input.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
 #include <algorithm>
@@ -60,32 +61,17 @@ struct SurfelCoverage {
 ///         cancelled: counts 0 and uncovered empty. Inputs are never modified.
 template <SurfelSet S, PointSet Q>
 [[nodiscard]] SurfelCoverage surfel_coverage(const S& surfels, const Q& samples, const SurfelCoverageParams& params = {}) {
-    constexpr const char* fn = "kintsugi::surfel_coverage";
-    const std::size_t n = num_points(surfels);
-    if (n == 0) throw invalid_input(std::string(fn) + ": there are no surfels; pass at least one disk");
-    if (!has_normals(surfels)) throw invalid_input(std::string(fn) + ": the surfels have no normals; every disk needs one");
-    if (!has_radii(surfels)) throw invalid_input(std::string(fn) + ": the surfels have no radii; every disk needs one");
+    const std::string fn = "kintsugi::surfel_coverage";
     if (!(params.depth_tolerance > 0) || !std::isfinite(params.depth_tolerance))
-        throw invalid_input(std::string(fn) + ": params.depth_tolerance must be a finite number > 0 (default 0.5)");
-    std::vector<Vec3> c = gather_points(surfels), nrm = gather_normals(surfels);
-    std::vector<Scalar> r = gather_radii(surfels);
+        throw invalid_input(fn + ": params.depth_tolerance must be a finite number > 0 (default 0.5)");
+    detail::SurfelInput in = detail::gather_surfels(surfels, fn, true);
+    std::vector<Vec3> c = std::move(in.points), nrm = std::move(in.normals);
+    std::vector<Scalar> r = std::move(in.radii);
     std::vector<Vec3> q = gather_points(samples);
     Scalar rmax = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-        if (!c[i].allFinite())
-            throw invalid_input(std::string(fn) + ": surfel " + std::to_string(i) + " has a NaN or infinite coordinate");
-        const Scalar len = nrm[i].norm();
-        if (!(len > 0) || !std::isfinite(len))
-            throw invalid_input(std::string(fn) + ": the normal of surfel " + std::to_string(i) +
-                                " is zero, NaN or infinite; give every disk a direction");
-        nrm[i] /= len;
-        if (!(r[i] > 0) || !std::isfinite(r[i]))
-            throw invalid_input(std::string(fn) + ": the radius of surfel " + std::to_string(i) + " is " +
-                                detail::format_number(r[i]) + "; radii must be finite and > 0");
-    }
     for (std::size_t i = 0; i < q.size(); ++i)
         if (!q[i].allFinite())
-            throw invalid_input(std::string(fn) + ": sample " + std::to_string(i) + " has a NaN or infinite coordinate");
+            throw invalid_input(fn + ": sample " + std::to_string(i) + " has a NaN or infinite coordinate");
     const detail::ScaleFrame frame = detail::scale_frame(c, q);
     frame.to_local(c);
     frame.to_local(q);

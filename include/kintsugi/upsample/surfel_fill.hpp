@@ -24,8 +24,9 @@
 /// surfels are back-projected onto the MLS surface of the INPUT points (APSS,
 /// field/point_set_surface.hpp; kd-tree on the input, growable uniform grid on the
 /// output) and processed in turn. Rounds repeat over the surfels that added disks
-/// until a round finds no gap: then every surfel's boundary is covered
-/// (coverage_verified). Curvature-adaptive radius: r = ε_r / √κ (κ the largest
+/// until a round finds no gap; the surfels whose last fill dropped a placement are
+/// then tested again against their present neighbours, and those still showing an
+/// uncovered arc are listed (uncovered_surfels; coverage_verified when none). Curvature-adaptive radius: r = ε_r / √κ (κ the largest
 /// |principal curvature| of a jet fit of the input), r_new computed at p_i and replaced
 /// by r' of a new centre when r_new / r' exceeds the threshold. Levels of detail:
 /// fill, halve every radius, fill again..., the surfels stored coarse to fine.
@@ -33,12 +34,15 @@
 /// all intersecting neighbours' arcs (the paper checks j - 1 and j + 2 only), so a gap
 /// covered by j - 2 is not filled twice; a new surfel whose back-projection lands farther
 /// than max_distance_rel from every input point (an open border, not a hole) is not
-/// placed, and coverage_verified then says false.
+/// placed, and the surfels left open there are listed in uncovered_surfels. Costs are
+/// bounded: the radius is at most the diagonal, input radii count at most 4x the
+/// radius in the neighbour searches, the output at most max_output_surfels.
 /// Licence: Eigen and nanoflann only.
 
 #include <kintsugi/adapters/indexed_mesh.hpp>  // PointCloud, the result's layout
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
+#include <kintsugi/core/surfel_input.hpp>
 #include <kintsugi/upsample/detail/surfel_fill_impl.hpp>  // field/, spatial/, core/control
 
 #include <numeric>
@@ -49,8 +53,8 @@ namespace kintsugi {
 /// Parameters of fill_surfel_gaps (aggregate; field order is API, append only).
 struct SurfelFillParams {
     /// Radius of the new surfels (and of input points that have none), in model units.
-    /// > 0, or 0 to use radius_rel instead (exactly one of the two is given). With
-    /// epsilon_r > 0 it is the largest radius.
+    /// In (0, bounding-box diagonal], or 0 to use radius_rel instead (exactly one of the
+    /// two is given). With epsilon_r > 0 it is the largest radius.
     Scalar radius = 0;
     /// The same as a fraction of the input's bounding-box diagonal (the paper's unit:
     /// 0.018 on its sphere, 0.0012 on igea). > 0, or 0 when radius is given.
@@ -83,8 +87,16 @@ struct SurfelFillParams {
     RunControl control{};
     /// The MLS support reaches at least this times the distance to the nearest input
     /// point (PointSetSurfaceParams::min_support_factor): in a hole the fit then takes
-    /// the whole rim, not its nearest arc. 0 (off) or >= 1; default 2.
+    /// the whole rim, not its nearest arc. 0 (off) or in [1, 8]; default 2 (1.5-4 give
+    /// the same accuracy on the bunny's holes; each query gathers factor^2 more points).
     Scalar mls_support_factor = 2;
+    /// Most surfels in the output (input included). A radius much smaller than the
+    /// input's spacing asks for a number of disks growing as 1/r²: the request is
+    /// refused upfront (invalid_input naming the expected count, from the surface area
+    /// estimated on a coarse grid over the hexagonal cover's 2.6 r² per disk and
+    /// level), and a fill that passes the cap anyway stops with invalid_input. >= 1;
+    /// default 20,000,000 (about 2 GB while filling).
+    std::size_t max_output_surfels = 20'000'000;
 };
 
 /// Outcome of fill_surfel_gaps.
@@ -102,9 +114,14 @@ struct SurfelFillResult {
     std::size_t rounds = 0;              ///< rounds over all levels
     std::size_t radius_redos = 0;        ///< fills redone with r' (adaptive radii)
     std::size_t not_placed = 0;          ///< new surfels beyond max_distance_rel or whose projection failed
-    /// True when the last round of every level found every surfel's boundary covered
-    /// (and nothing was left unplaced): no hole at the given radius.
+    /// True when, at the end of every level, every surfel's boundary is covered by its
+    /// neighbours' disks projected onto its tangent plane: no hole at the given radius.
     bool coverage_verified = false;
+    /// The surfels (indices into `surfels`) whose boundary keeps an uncovered arc at
+    /// the end of their level, increasing: where a new disk could not be placed (an
+    /// open border beyond max_distance_rel, a rim whose disk would land on an existing
+    /// centre) or max_iterations ran out. Empty exactly when coverage_verified.
+    std::vector<std::size_t> uncovered_surfels;
     Scalar radius = 0;                   ///< the level-0 radius used (model units)
     std::vector<StageTiming> timings;    ///< "prepare", "fill level 0", ...
 };
@@ -113,9 +130,44 @@ namespace detail::surfel_fill {
 
 struct Config {
     Scalar radius = 0, epsilon = 0, min_fraction = 0, ratio = 0, max_distance = 0;
-    std::size_t levels = 1, rounds = 1, curvature_k = 20;
+    std::size_t levels = 1, rounds = 1, curvature_k = 20, max_output = 0;
     ScaleFrame frame;
 };
+
+/// Upper bound of SurfelFillParams::mls_support_factor.
+constexpr Scalar max_support_factor = 8;
+/// Input radii above this times the fill radius count as this in the gap tests (a
+/// smaller circle only makes the test stricter), so that one huge input disk cannot
+/// widen every neighbour search to the whole model (quadratic cost).
+constexpr Scalar max_input_radius_factor = 4;
+
+/// About how many surfels a hexagonal cover of the input's surface at `radius` needs
+/// over `levels` levels (each halving the radius): the surface area estimated as the
+/// occupied cells of a grid coarse enough to hold several input points per cell
+/// (area ~ cells x side^2 / 1.5, the mean of |n_x| + |n_y| + |n_z| for a random
+/// orientation), over 2.6 r^2 per disk. An order of magnitude, for refusing a radius
+/// far below the spacing before the fill runs.
+inline double expected_output(const std::vector<Vec3>& P, Scalar diag, Scalar radius, std::size_t levels) {
+    if (!(diag > 0) || P.empty()) return static_cast<double>(P.size());
+    BoundingBox box;
+    for (const Vec3& p : P) box.extend(p);
+    std::vector<std::uint64_t> keys(P.size());
+    double area = 0;
+    for (Scalar cell = diag / 256;; cell *= 2) {
+        for (std::size_t i = 0; i < P.size(); ++i) {
+            const Vec3 t = (P[i] - box.min) / cell;
+            keys[i] = (static_cast<std::uint64_t>(t.x()) << 42) | (static_cast<std::uint64_t>(t.y()) << 21) |
+                      static_cast<std::uint64_t>(t.z());
+        }
+        std::sort(keys.begin(), keys.end());
+        const auto cells = static_cast<double>(std::unique(keys.begin(), keys.end()) - keys.begin());
+        area = cells * cell * cell / 1.5;
+        if (static_cast<double>(P.size()) >= 4 * cells || cell >= diag / 4) break;
+    }
+    double per_level = area / (2.6 * radius * radius), total = 0;
+    for (std::size_t l = 0; l < levels; ++l, per_level *= 4) total += per_level;
+    return std::max(total, static_cast<double>(P.size()));
+}
 
 /// The whole fill on local-frame copies: P, N (unit), R (level-0 radii) in; out filled.
 /// A new surfel closer than this times its radius to an existing centre is not placed.
@@ -145,13 +197,17 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         parallel_for(0, nin, [&](std::size_t i) { rn0[i] = adaptive_radius(P[i]); }, 64);
         R = rn0;
     }
+    // The input radii as given (the output keeps them); in the gap tests they count
+    // at most max_input_radius_factor x radius, which bounds the neighbour searches.
+    const std::vector<Scalar> R_given = adaptive ? std::vector<Scalar>{} : R;
+    for (Scalar& r : R) r = std::min(r, max_input_radius_factor * cfg.radius);
     std::vector<std::uint16_t> level_of(nin, 0);
     Scalar rmax0 = cfg.radius;
     for (Scalar r : R) rmax0 = std::max(rmax0, r);
-    res.coverage_verified = true;
     std::vector<Circle> circles;
     std::vector<Neighbor> nb;
     PlaneFill pf;
+    std::vector<std::size_t> uncovered;
     for (std::size_t level = 0; level < cfg.levels; ++level) {
         const Scalar scale = std::ldexp(Scalar(1), -static_cast<int>(level));
         progress.stage("fill level " + std::to_string(level), 0.1 + 0.9 * double(level) / double(cfg.levels),
@@ -162,49 +218,58 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         UniformGrid grid(P, 3 * rmax);
         std::vector<Index> queue(P.size());
         std::iota(queue.begin(), queue.end(), Index{0});
+        // open[i]: the last fill of i left part of a gap unfilled (a placement dropped).
+        std::vector<unsigned char> open(P.size(), 0);
+        // The neighbours of surfel i projected onto its tangent plane (e1, e2), with
+        // every disk that can meet i or a new disk of radius rn around it.
+        auto gather_circles = [&](Index i, Scalar ri, Scalar rn, const Vec3& e1, const Vec3& e2) {
+            const Vec3 pi = P[i], ni = N[i];
+            const Scalar reach = ri + rn + rmax;
+            grid.radius_search_squared(pi, reach * reach, nb, false);
+            std::sort(nb.begin(), nb.end(), [](const Neighbor& a, const Neighbor& b) { return a.index < b.index; });
+            circles.clear();
+            for (const Neighbor& x : nb) {
+                if (x.index == i) continue;
+                const Vec3 d = P[x.index] - pi;
+                const Scalar rho = std::max(Scalar(0), N[x.index].dot(ni)) * R[x.index] * scale;
+                if (rho > 0) circles.push_back({Vec2(d.dot(e1), d.dot(e2)), rho});
+            }
+        };
         bool verified = false;
         std::size_t done_total = 0;
+        std::vector<Index> again;
         for (std::size_t round = 0; round < cfg.rounds; ++round) {
             ++res.rounds;
-            std::vector<Index> again;
+            again.clear();
             for (std::size_t qi = 0; qi < queue.size(); ++qi) {
                 if ((++done_total & 255) == 0)
                     progress.update(0.9 * double(done_total) / double(done_total + queue.size() - qi));
                 const Index i = queue[qi];
-                const Vec3 pi = P[i], ni = N[i];
+                const Vec3 pi = P[i];
                 const Scalar ri = R[i] * scale;
                 if (adaptive && std::isnan(rn0[i])) rn0[i] = adaptive_radius(pi);
                 Scalar rn = (adaptive ? rn0[i] : cfg.radius) * scale;
                 Vec3 e1, e2;
-                tangent_basis(ni, e1, e2);
-                // Neighbours: every disk that can meet i or a new disk around it.
-                const Scalar reach = ri + rn + rmax;
-                grid.radius_search_squared(pi, reach * reach, nb, false);
-                std::sort(nb.begin(), nb.end(), [](const Neighbor& a, const Neighbor& b) { return a.index < b.index; });
-                circles.clear();
-                for (const Neighbor& x : nb) {
-                    if (x.index == i) continue;
-                    const Vec3 d = P[x.index] - pi;
-                    const Scalar rho = std::max(Scalar(0), N[x.index].dot(ni)) * R[x.index] * scale;
-                    if (rho > 0) circles.push_back({Vec2(d.dot(e1), d.dot(e2)), rho});
-                }
+                tangent_basis(N[i], e1, e2);
+                gather_circles(i, ri, rn, e1, e2);
                 const std::size_t nc = circles.size();
                 std::vector<Vec3> newp, newn;
                 std::vector<Scalar> newr;
+                std::size_t dropped = 0;
                 for (int attempt = 0;; ++attempt) {
                     circles.resize(nc);
                     fill_plane(ri, rn, circles, pf);
                     newp.clear();
                     newn.clear();
                     newr.clear();
+                    dropped = 0;
                     Scalar rmin_new = std::numeric_limits<Scalar>::infinity();
                     for (const Vec2& c : pf.centres) {
                         const Vec3 x = pi + c.x() * e1 + c.y() * e2;
                         const SurfaceProjection pr = mls.project_unchecked(x);
                         if (!pr.point.allFinite() || !(pr.normal.squaredNorm() > 0.5) ||
                             tree.nearest(pr.point).squared_distance > cfg.max_distance * cfg.max_distance) {
-                            ++res.not_placed;
-                            res.coverage_verified = false;
+                            ++dropped;
                             continue;
                         }
                         // A disk landing on an existing centre adds nothing: the surface bends
@@ -214,8 +279,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                         grid.for_each_in_ball(pr.point, near, [&](Index, Scalar) { redundant = true; });
                         for (const Vec3& q : newp) redundant = redundant || (q - pr.point).squaredNorm() <= near * near;
                         if (redundant) {
-                            ++res.not_placed;
-                            res.coverage_verified = false;
+                            ++dropped;
                             continue;
                         }
                         newp.push_back(pr.point);
@@ -232,10 +296,16 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                     }
                     break;
                 }
+                res.not_placed += dropped;
+                open[i] = dropped > 0;
                 if (pf.centres.empty()) continue;
                 res.gaps_filled += pf.gaps;
                 if (newp.empty()) continue;  // nothing could be placed: not retried
                 again.push_back(i);
+                if (P.size() + newp.size() > cfg.max_output)
+                    throw invalid_input("kintsugi::fill_surfel_gaps: the fill reached params.max_output_surfels = " +
+                                        std::to_string(cfg.max_output) + " surfels at level " + std::to_string(level) +
+                                        "; pass a larger radius or raise the cap");
                 for (std::size_t k = 0; k < newp.size(); ++k) {
                     const Index id = grid.append(newp[k]);
                     (void)id;
@@ -244,6 +314,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                     R.push_back(rn / scale);  // stored as a level-0 radius
                     level_of.push_back(static_cast<std::uint16_t>(level));
                     rn0.push_back(adaptive ? newr[k] : std::numeric_limits<Scalar>::quiet_NaN());
+                    open.push_back(0);
                     queue.push_back(static_cast<Index>(P.size() - 1));
                 }
             }
@@ -251,11 +322,32 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                 verified = true;
                 break;
             }
-            queue = std::move(again);
+            queue = again;
         }
-        if (!verified) res.coverage_verified = false;
+        // What is left open: the surfels whose last fill dropped a placement, and (when
+        // the rounds ran out) those that added disks in the last round. Each is tested
+        // again against its present neighbours: a gap may have been closed since.
+        std::vector<Index> suspects;
+        for (std::size_t i = 0; i < open.size(); ++i)
+            if (open[i]) suspects.push_back(static_cast<Index>(i));
+        if (!verified) suspects.insert(suspects.end(), again.begin(), again.end());
+        std::sort(suspects.begin(), suspects.end());
+        suspects.erase(std::unique(suspects.begin(), suspects.end()), suspects.end());
+        for (const Index i : suspects) {
+            const Scalar ri = R[i] * scale;
+            const Scalar rn = (adaptive ? (std::isnan(rn0[i]) ? adaptive_radius(P[i]) : rn0[i]) : cfg.radius) * scale;
+            Vec3 e1, e2;
+            tangent_basis(N[i], e1, e2);
+            gather_circles(i, ri, rn, e1, e2);
+            fill_plane(ri, rn, circles, pf);
+            if (!pf.centres.empty()) uncovered.push_back(i);
+        }
         res.level_counts.push_back(P.size());
     }
+    std::sort(uncovered.begin(), uncovered.end());
+    uncovered.erase(std::unique(uncovered.begin(), uncovered.end()), uncovered.end());
+    res.uncovered_surfels = std::move(uncovered);
+    res.coverage_verified = res.uncovered_surfels.empty();
     // Output: world frame, radii of the finest level.
     const Scalar fine = std::ldexp(Scalar(1), -static_cast<int>(cfg.levels - 1));
     res.surfels.points.resize(P.size());
@@ -263,7 +355,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
     res.surfels.radii.resize(P.size());
     for (std::size_t i = 0; i < P.size(); ++i) {
         res.surfels.points[i] = cfg.frame.to_world(P[i]);
-        res.surfels.radii[i] = cfg.frame.to_world(R[i] * fine);
+        res.surfels.radii[i] = cfg.frame.to_world((i < R_given.size() ? R_given[i] : R[i]) * fine);
     }
 }
 
@@ -280,16 +372,15 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
 /// @pre at least one surfel; finite coordinates, non-zero normals, radii finite and > 0.
 /// @throws invalid_input (naming the function and the element) for no surfels, missing
 ///         normals, a NaN/Inf coordinate or normal, a zero normal, a radius that is not
-///         finite and > 0 (input or params), or a parameter out of range.
+///         finite and > 0 (input or params), a radius above the bounding-box
+///         diagonal, an expected output above max_output_surfels (the message names
+///         the expected count; also thrown when a fill passes the cap), or a parameter
+///         out of range.
 /// @return status ok: the filled surfels (identical whatever the thread count);
 ///         cancelled: surfels and level_counts empty. The input is never modified.
 template <OrientedPointSet S>
 [[nodiscard]] SurfelFillResult fill_surfel_gaps(const S& surfels, const SurfelFillParams& params = {}) {
     const std::string fn = "kintsugi::fill_surfel_gaps";
-    const std::size_t n = num_points(surfels);
-    if (n == 0) throw invalid_input(fn + ": there are no surfels; pass at least one oriented point");
-    if (!has_normals(surfels))
-        throw invalid_input(fn + ": the surfels have no normals; estimate and orient them first (kintsugi::estimate_normals)");
     const bool given_r = params.radius != 0, given_rel = params.radius_rel != 0;
     if (given_r == given_rel)
         throw invalid_input(fn + ": pass exactly one of params.radius (model units) and params.radius_rel (fraction of "
@@ -314,22 +405,19 @@ template <OrientedPointSet S>
     if (params.curvature_k < 6) throw invalid_input(fn + ": params.curvature_k must be at least 6 (default 20)");
     if (!(params.max_distance_rel > 0) || !std::isfinite(params.max_distance_rel))
         throw invalid_input(fn + ": params.max_distance_rel must be finite and > 0 (default 0.1)");
+    if (!(params.mls_support_factor == 0 ||
+          (params.mls_support_factor >= 1 && params.mls_support_factor <= detail::surfel_fill::max_support_factor)))
+        throw invalid_input(fn + ": params.mls_support_factor = " + detail::format_number(params.mls_support_factor) +
+                            "; pass 0 (off) or a number in [1, 8] (default 2): a wider support makes every "
+                            "projection query gather (factor)^2 times more points");
+    if (params.max_output_surfels < 1) throw invalid_input(fn + ": params.max_output_surfels is 0; pass at least 1");
 
-    std::vector<Vec3> P = gather_points(surfels), N = gather_normals(surfels);
-    std::vector<Scalar> R = gather_radii(surfels);
+    detail::SurfelInput in = detail::gather_surfels(surfels, fn, false);
+    const std::size_t n = in.points.size();
+    std::vector<Vec3>& P = in.points;
+    std::vector<Vec3>& N = in.normals;
+    std::vector<Scalar>& R = in.radii;
     const bool own_radii = !R.empty();
-    for (std::size_t i = 0; i < n; ++i) {
-        if (!P[i].allFinite())
-            throw invalid_input(fn + ": surfel " + std::to_string(i) + " has a NaN or infinite coordinate; remove it first");
-        const Scalar len = N[i].norm();
-        if (!(len > 0) || !std::isfinite(len))
-            throw invalid_input(fn + ": the normal of surfel " + std::to_string(i) +
-                                " is zero, NaN or infinite; estimate normals first or remove the point");
-        N[i] /= len;
-        if (own_radii && (!(R[i] > 0) || !std::isfinite(R[i])))
-            throw invalid_input(fn + ": the radius of surfel " + std::to_string(i) + " is " + detail::format_number(R[i]) +
-                                "; radii must be finite and > 0");
-    }
     BoundingBox box;
     for (const Vec3& p : P) box.extend(p);
     Scalar diag = box.diagonal();
@@ -338,6 +426,19 @@ template <OrientedPointSet S>
     if (!(radius > 0) || !std::isfinite(radius))
         throw invalid_input(fn + ": the radius is " + detail::format_number(radius) +
                             " (radius_rel of a zero diagonal: the points coincide); pass params.radius");
+    if (diag > 0 && radius > diag)
+        throw invalid_input(fn + ": params.radius = " + detail::format_number(radius) +
+                            " is larger than the input's bounding-box diagonal " + detail::format_number(diag) +
+                            "; one disk would cover the whole model (and every neighbour search would see every surfel)");
+    {
+        const double expected = detail::surfel_fill::expected_output(P, diag, radius, params.levels);
+        if (expected > static_cast<double>(params.max_output_surfels))
+            throw invalid_input(fn + ": radius " + detail::format_number(radius) + " (" +
+                                detail::format_number(radius / diag) + " of the diagonal) asks for about " +
+                                detail::format_number(expected) + " surfels over " + std::to_string(params.levels) +
+                                " level(s), more than params.max_output_surfels = " +
+                                std::to_string(params.max_output_surfels) + "; pass a larger radius or raise the cap");
+    }
     if (params.epsilon_r > 0 && n < params.curvature_k)
         throw invalid_input(fn + ": adaptive radii need at least params.curvature_k = " + std::to_string(params.curvature_k) +
                             " input points; there are " + std::to_string(n));
@@ -384,6 +485,7 @@ template <OrientedPointSet S>
         cfg.levels = params.levels;
         cfg.rounds = params.max_iterations;
         cfg.curvature_k = params.curvature_k;
+        cfg.max_output = params.max_output_surfels;
         PointCloud input{P1, N1, {}};
         const PointSetSurface mls(input, {.k = std::min(params.mls_k, P1.size()),
                                           .max_iterations = 10,

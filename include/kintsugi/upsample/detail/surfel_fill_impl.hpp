@@ -238,9 +238,11 @@ inline void fill_plane(Scalar ri, Scalar rn, std::vector<Circle>& circles, Plane
                 // (c) one new surfel at the orthocentre of the three centres.
                 const Vec2 q0 = orthocentre(Vec2::Zero(), circles[static_cast<std::size_t>(left)].c,
                                             circles[static_cast<std::size_t>(right)].c);
-                // A right angle at q_j or q_{j+1} puts the orthocentre on that centre: a
-                // disk there would repeat the neighbour, so (d) is taken instead.
+                // A right angle at q_j or q_{j+1} puts the orthocentre on that centre, a
+                // right angle at p_i on p_i itself (not in `circles`): a disk there would
+                // repeat that surfel, so (d) is taken instead.
                 auto on_centre = [&](const Vec2& q) {
+                    if (q.norm() < 0.1 * rn) return true;
                     for (const Circle& k : circles)
                         if ((k.c - q).norm() < 0.1 * rn) return true;
                     return false;
