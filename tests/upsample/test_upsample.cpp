@@ -108,7 +108,8 @@ Holey cut_holes(const ks::PointCloud& in, const std::vector<std::size_t>& centre
 
 }  // namespace
 
-TEST_CASE("bunny with 3 holes of 5 % of the diagonal: holes covered, new surfels within 0.1 % of the true surface") {
+TEST_CASE("bunny with 3 holes of 5 % of the diagonal: holes covered, new surfels within 0.1 % of the true surface "
+          "where the rest of the scan predicts it") {
     const auto xyz = ks::test::shared_data("stanford_bunny/reconstruction/bun_zipper_points_normals.xyz");
     const auto ply = ks::test::shared_data("stanford_bunny/reconstruction/bun_zipper.ply");
     KINTSUGI_REQUIRE_DATA(xyz);
@@ -116,9 +117,9 @@ TEST_CASE("bunny with 3 holes of 5 % of the diagonal: holes covered, new surfels
     const ks::PointCloud full = ks::read_point_cloud(xyz);
     const ks::IndexedMesh truth = ks::read_mesh(ply);
     // Three holes of diameter 5 % of the diagonal on the back, the flank and the side of
-    // the body. Where a hole of that size takes away a feature (the base of an ear, the
-    // feet) no smooth fill is within 0.1 %: the removed points are 0.3-0.9 % from the
-    // MLS surface of what is left (docs/methods/surfel_upsampling.md).
+    // the body. How close any fill from the rim can come is set by the data: the removed
+    // points lie 0.063 / 0.104 / 0.128 % of the diagonal from the MLS surface of what is
+    // left (and 0.05-0.7 % at 9 held-out holes: docs/methods/surfel_upsampling.md).
     const Holey h = cut_holes(full, {3500, 9500, 24500}, 0.025);
     for (const ks::Vec3& c : h.centres) MESSAGE("hole centre " << c.transpose());
     MESSAGE("removed " << h.removed.size() << " of " << full.points.size());
@@ -129,23 +130,43 @@ TEST_CASE("bunny with 3 holes of 5 % of the diagonal: holes covered, new surfels
     const ks::SurfelCoverage cov = ks::surfel_coverage(r.surfels, h.removed);
     MESSAGE("hole coverage " << cov.fraction);
     CHECK(cov.uncovered.empty());
+    // The data's limit per hole: the removed points projected onto the MLS surface of
+    // the kept ones (the surface the new surfels are projected onto).
+    const ks::PointSetSurface rest(h.kept, {.k = 20, .max_iterations = 10, .min_support_factor = 2});
+    std::array<double, 3> limit{}, worst{};
+    for (const ks::Vec3& q : h.removed)
+        for (std::size_t k = 0; k < 3; ++k)
+            if ((q - h.centres[k]).norm() < 0.025 * h.diag)
+                limit[k] = std::max(limit[k], (rest.project(q).point - q).norm());
     // New surfels in the cut holes, against the scanned mesh.
     std::vector<ks::Vec3> in_holes;
+    std::vector<std::size_t> hole_of;
     for (std::size_t i = r.input_surfels; i < r.surfels.points.size(); ++i)
-        for (const ks::Vec3& c : h.centres)
-            if ((r.surfels.points[i] - c).norm() < 0.025 * h.diag) {
+        for (std::size_t k = 0; k < 3; ++k)
+            if ((r.surfels.points[i] - h.centres[k]).norm() < 0.025 * h.diag) {
                 in_holes.push_back(r.surfels.points[i]);
+                hole_of.push_back(k);
                 break;
             }
     REQUIRE(in_holes.size() > 120);
     const std::vector<double> d = ks::distances_to_mesh(in_holes, truth);
-    const double worst = *std::max_element(d.begin(), d.end());
     double mean = 0;
-    for (double x : d) mean += x / static_cast<double>(d.size());
+    for (std::size_t j = 0; j < d.size(); ++j) {
+        mean += d[j] / static_cast<double>(d.size());
+        worst[hole_of[j]] = std::max(worst[hole_of[j]], d[j]);
+    }
     MESSAGE(in_holes.size() << " new surfels in the holes, distance to the scanned mesh: mean " << mean / h.diag * 100
-                            << " %, max " << worst / h.diag * 100 << " % of the diagonal");
-    CHECK(mean < 0.001 * h.diag);   // measured 0.030 %
-    CHECK(worst < 0.0015 * h.diag); // measured 0.120 % (0.062 % and 0.095 % in the first two holes)
+                            << " % of the diagonal");
+    for (std::size_t k = 0; k < 3; ++k) {
+        MESSAGE("hole " << k << ": max " << worst[k] / h.diag * 100 << " %, removed points from the MLS of the rest "
+                        << limit[k] / h.diag * 100 << " %");
+        // The fill is as close as the data allows (measured below the limit in all three).
+        CHECK(worst[k] <= limit[k] + 0.0001 * h.diag);
+    }
+    CHECK(mean < 0.001 * h.diag);       // measured 0.030 %
+    CHECK(worst[0] < 0.001 * h.diag);   // measured 0.062 %
+    CHECK(worst[1] < 0.001 * h.diag);   // measured 0.095 %
+    CHECK(worst[2] < 0.0015 * h.diag);  // measured 0.120 %, data limit 0.128 %: 0.1 % is out of reach there
 }
 
 TEST_CASE("kitten (shipped) with 3 holes: holes covered, new surfels on the MLS surface of the whole scan") {
