@@ -19,6 +19,7 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
+#include <kintsugi/mesh/vertex_subset.hpp>
 
 #include <cmath>
 #include <cstdint>
@@ -87,9 +88,7 @@ inline void taubin_validate(const TaubinParams& p, std::size_t nv, const std::ve
         throw invalid_input(fn + "lambda = " + std::to_string(p.lambda) + " is outside (0, 1]; use e.g. 0.5");
     if (!(p.mu < 0 && p.mu >= -1))
         throw invalid_input(fn + "mu = " + std::to_string(p.mu) + " is outside [-1, 0); use e.g. -0.5 or -0.53");
-    if (!movable.empty() && movable.size() != nv)
-        throw invalid_input(fn + "movable has " + std::to_string(movable.size()) + " entries for " +
-                            std::to_string(nv) + " vertices; give one per vertex or leave it empty");
+    check_vertex_flags(movable, nv, fn, "movable", true);
 }
 
 }  // namespace detail
@@ -113,32 +112,23 @@ inline void taubin_validate(const TaubinParams& p, std::size_t nv, const std::ve
 ///         stopped through params.control, the mesh is untouched.
 template <MutableTriangleMesh M>
 TaubinResult smooth_taubin(M& mesh, const std::vector<std::uint8_t>& movable = {}, const TaubinParams& params = {}) {
-    const std::size_t nv = kintsugi::num_vertices(mesh);
-    detail::taubin_validate(params, nv, movable);
-    std::vector<Vec3> positions(nv);
-    for (Index v = 0; v < nv; ++v) {
-        positions[v] = kintsugi::vertex_position(mesh, v);
-        if (!positions[v].allFinite())
-            throw invalid_input("kintsugi::smooth_taubin: vertex " + std::to_string(v) +
-                                " has a NaN or infinite coordinate");
-    }
+    detail::taubin_validate(params, kintsugi::num_vertices(mesh), movable);
+    std::vector<Vec3> positions = detail::finite_vertex_positions(mesh, "kintsugi::smooth_taubin: ");
     const MeshTopology topo(mesh);
     // Any magnitude: sums of coordinates near 1e308 overflow; a power-of-two rescaling is exact.
     const detail::ScaleFrame frame = detail::scale_frame(positions);
     frame.to_local(positions);
-    detail::Progress progress(params.control);
-    TaubinResult out;
-    try {
+    TaubinResult out = detail::run_cancellable<TaubinResult>(params.control, [&](detail::Progress& progress) {
+        TaubinResult r;
         progress.stage("taubin", 0.0, 1.0);
-        out.moved_vertices = detail::taubin_smooth(positions, topo, movable, params, progress);
-        out.timings = progress.finish();
-    } catch (const detail::cancelled_exception&) {
-        return TaubinResult{Status::cancelled, 0, {}};
+        r.moved_vertices = detail::taubin_smooth(positions, topo, movable, params, progress);
+        r.timings = progress.finish();
+        return r;
+    });
+    if (out.status == Status::ok && params.iterations > 0) {
+        frame.to_world(positions);
+        detail::write_flagged_positions(mesh, positions, movable);
     }
-    frame.to_world(positions);
-    if (params.iterations > 0)
-        for (Index v = 0; v < nv; ++v)
-            if (movable.empty() || movable[v] != 0) kintsugi::set_vertex_position(mesh, v, positions[v]);
     return out;
 }
 

@@ -340,10 +340,9 @@ PUFieldResult PUField::build(const P& points, const PUFieldParams& params) {
 
 inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3> nrm, const PUFieldParams& params) {
     detail::pu_validate(pts, nrm, params);
-    PUFieldResult res;
-    res.points = pts.size();
-    detail::Progress progress(params.control);
-    try {
+    const std::size_t n_points = pts.size();
+    PUFieldResult out = detail::run_cancellable<PUFieldResult>(params.control, [&](detail::Progress& progress) {
+        PUFieldResult res;
         auto data = std::make_shared<detail::PUFieldData>();
         progress.stage("pu_octree", 0.0, 0.1);
         for (const auto& p : pts) data->box.extend(p);
@@ -408,13 +407,10 @@ inline PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vector<Vec3
                                            [&](double f) { progress.update(0.8 * f); });
         res.field.data_ = std::move(data);
         res.timings = progress.finish();
-        res.status = Status::ok;
-    } catch (const detail::cancelled_exception&) {
-        res.field = PUField{};
-        res.status = Status::cancelled;
-        res.supports = 0;
-    }
-    return res;
+        return res;
+    });
+    out.points = n_points;  // also when cancelled: the field is empty, the input count stays
+    return out;
 }
 
 static_assert(DifferentiableScalarField<PUField>);
