@@ -6,13 +6,19 @@
 // operations (the choice of structure, docs/methods/mesh_editing.md). Start: an
 // icosphere with 81,920 faces. Counters: heap bytes per live face after the run (glibc
 // mallinfo2, in-use plus mmapped blocks: the structure with its attributes) and the edits done.
+// Hole fill: time against the hole's length (about 100, 1K and 10K boundary edges), a slot
+// two cells wide cut from a flat grid, kintsugi::fill_hole beside CGAL's
+// triangulate_refine_and_fair_hole (docs/methods/mesh_editing.md).
 #include "common.hpp"
 
 #include "../tests/mesh/edit_fixtures.hpp"
 
 #include <kintsugi/adapters/cgal.hpp>
 #include <kintsugi/mesh/halfedge_mesh.hpp>
+#include <kintsugi/mesh/holes.hpp>
 
+#define CGAL_EIGEN3_ENABLED 1
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/boost/graph/Euler_operations.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
@@ -155,3 +161,77 @@ int main(int argc, char** argv) {
         r.print_cpu_ratio("BM_kintsugi_edit_1M", "BM_cgal_edit_1M");
     });
 }
+
+namespace {
+
+// (L + 2) x 8 cells of 0.1 in the plane z = 0 minus the slot of L x 2 cells at cells
+// [1, L+1) x [3, 5): one hole with 2L + 4 boundary edges, next to the outer border.
+ks::IndexedMesh slot_mesh(int L) {
+    const int nx = L + 2, ny = 8;
+    ks::IndexedMesh m;
+    for (int j = 0; j <= ny; ++j)
+        for (int i = 0; i <= nx; ++i) m.vertices.emplace_back(0.1 * i, 0.1 * j, 0.0);
+    auto id = [nx](int i, int j) { return static_cast<ks::Index>(j * (nx + 1) + i); };
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+            if (i >= 1 && i < L + 1 && j >= 3 && j < 5) continue;
+            m.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+            m.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+        }
+    return m;
+}
+
+void BM_kintsugi_fill_slot(benchmark::State& state) {
+    const ks::IndexedMesh in = slot_mesh(static_cast<int>(state.range(0)));
+    const auto loops = ks::find_boundary_loops(in);
+    const auto hole = loops.loops.at(loops.holes().at(0)).vertices;
+    std::size_t added = 0;
+    for (auto _ : state) {
+        state.PauseTiming();
+        ks::IndexedMesh m = in;
+        state.ResumeTiming();
+        added = ks::fill_hole(m, hole).new_vertices;
+    }
+    state.counters["boundary_edges"] = static_cast<double>(hole.size());
+    state.counters["new_vertices"] = static_cast<double>(added);
+}
+BENCHMARK(BM_kintsugi_fill_slot)->Arg(48)->Arg(498)->Arg(4998)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+void BM_cgal_fill_slot(benchmark::State& state) {
+    using SM = CGAL::Surface_mesh<CGAL::Simple_cartesian<double>::Point_3>;
+    SM in;
+    ks::assign_mesh(in, slot_mesh(static_cast<int>(state.range(0))));
+    // The hole: the border cycle that does not contain vertex 0 (a corner of the outer border).
+    SM::Halfedge_index start;
+    std::size_t edges = 0;
+    for (auto h : in.halfedges()) {
+        if (!in.is_border(h)) continue;
+        bool outer = false;
+        std::size_t n = 0;
+        for (auto g : CGAL::halfedges_around_face(h, in)) {
+            outer = outer || in.source(g) == SM::Vertex_index(0);
+            ++n;
+        }
+        if (!outer) {
+            start = h;
+            edges = n;
+            break;
+        }
+    }
+    std::size_t added = 0;
+    for (auto _ : state) {
+        state.PauseTiming();
+        SM m = in;
+        std::vector<SM::Face_index> pf;
+        std::vector<SM::Vertex_index> pv;
+        state.ResumeTiming();
+        CGAL::Polygon_mesh_processing::triangulate_refine_and_fair_hole(m, start, std::back_inserter(pf),
+                                                                        std::back_inserter(pv));
+        added = pv.size();
+    }
+    state.counters["boundary_edges"] = static_cast<double>(edges);
+    state.counters["new_vertices"] = static_cast<double>(added);
+}
+BENCHMARK(BM_cgal_fill_slot)->Arg(48)->Arg(498)->Arg(4998)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+}  // namespace
