@@ -22,6 +22,7 @@
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/mesh/vertex_subset.hpp>
 
+#include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseLU>
 
@@ -55,6 +56,42 @@ struct FairResult {
 
 namespace detail {
 
+/// The sparse system of a fairing: one unknown per free vertex with a neighbour, three
+/// right-hand sides (x, y, z). A fairing adds its entries, then solve() writes the
+/// solution into the free vertices.
+struct FairSystem {
+    MovableVertices unknowns;
+    std::vector<std::uint8_t> rows;  ///< the unknowns and their neighbours (one-rings that involve an unknown)
+    std::vector<Eigen::Triplet<Scalar>> entries;
+    Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs;
+
+    FairSystem(const MeshTopology& topo, std::size_t n, const std::vector<std::uint8_t>& free)
+        : unknowns(movable_vertices(topo, n, free)), rows(rows_near(topo, unknowns.vertices, n)),
+          rhs(Eigen::Matrix<Scalar, Eigen::Dynamic, 3>::Zero(static_cast<Eigen::Index>(unknowns.vertices.size()), 3)) {}
+
+    [[nodiscard]] std::size_t size() const { return unknowns.vertices.size(); }
+    /// Column of vertex v, MovableVertices::none when v is fixed.
+    [[nodiscard]] Index column(Index v) const { return unknowns.column[v]; }
+    void add(std::size_t r, std::size_t c, Scalar a) { entries.emplace_back(static_cast<int>(r), static_cast<int>(c), a); }
+
+    /// Factorises with Solver and writes the solution into x; returns the number of
+    /// vertices moved, 0 (x unchanged) when the factorisation or the solve fails.
+    template <class Solver>
+    std::size_t solve(std::vector<Vec3>& x) const {
+        const auto m = static_cast<Eigen::Index>(size());
+        Eigen::SparseMatrix<Scalar> A(m, m);
+        A.setFromTriplets(entries.begin(), entries.end());
+        A.makeCompressed();
+        Solver solver;
+        solver.compute(A);
+        if (solver.info() != Eigen::Success) return 0;
+        const Eigen::Matrix<Scalar, Eigen::Dynamic, 3> sol = solver.solve(rhs);
+        if (solver.info() != Eigen::Success || !sol.allFinite()) return 0;
+        for (Eigen::Index k = 0; k < m; ++k) x[unknowns.vertices[static_cast<std::size_t>(k)]] = sol.row(k).transpose();
+        return size();
+    }
+};
+
 /// The vertices with free[v] != 0 take the positions that minimise Σ_i |L x_i|² (L the
 /// uniform umbrella operator, mean of the one ring minus the vertex; the sum over every
 /// vertex whose umbrella involves a free vertex) plus delta Σ_free |x_v - x_v⁰|², the
@@ -62,57 +99,32 @@ namespace detail {
 /// free vertices moved (0 when the factorisation fails; then x is unchanged).
 inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& topo,
                                    const std::vector<std::uint8_t>& free, Scalar delta = 1e-8) {
-    const std::size_t n = x.size();
-    constexpr Index none = std::numeric_limits<Index>::max();
-    std::vector<Index> col(n, none);
-    std::vector<Index> vars;
-    for (Index v = 0; v < n; ++v)
-        if (free[v] && !topo.vertex_neighbors(v).empty()) {
-            col[v] = vars.size();
-            vars.push_back(v);
-        }
-    const std::size_t m = vars.size();
-    if (m == 0) return 0;
-    // Rows: every vertex that is free or has a free neighbour.
-    std::vector<std::uint8_t> row(n, 0);
-    for (const Index v : vars) {
-        row[v] = 1;
-        for (const Index u : topo.vertex_neighbors(v)) row[u] = 1;
-    }
-    std::vector<Eigen::Triplet<Scalar>> trip;
-    Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs = Eigen::Matrix<Scalar, Eigen::Dynamic, 3>::Zero(
-        static_cast<Eigen::Index>(m), 3);
+    FairSystem sys(topo, x.size(), free);
+    if (sys.size() == 0) return 0;
     std::vector<std::pair<Index, Scalar>> a;  // free part of the row: (column, coefficient)
-    for (Index i = 0; i < n; ++i) {
-        if (!row[i]) continue;
+    for (Index i = 0; i < x.size(); ++i) {
+        if (!sys.rows[i]) continue;
         const auto nb = topo.vertex_neighbors(i);
         if (nb.empty()) continue;
         const Scalar c = Scalar(1) / static_cast<Scalar>(nb.size());
         a.clear();
         Vec3 b = Vec3::Zero();
         auto add = [&](Index v, Scalar coef) {
-            if (col[v] != none) a.emplace_back(col[v], coef);
+            if (sys.column(v) != MovableVertices::none) a.emplace_back(sys.column(v), coef);
             else b += coef * x[v];
         };
         add(i, -1);
         for (const Index u : nb) add(u, c);
         for (const auto& [p, ap] : a) {
-            for (const auto& [q, aq] : a) trip.emplace_back(static_cast<int>(p), static_cast<int>(q), ap * aq);
-            rhs.row(static_cast<Eigen::Index>(p)) -= ap * b.transpose();
+            for (const auto& [q, aq] : a) sys.add(p, q, ap * aq);
+            sys.rhs.row(static_cast<Eigen::Index>(p)) -= ap * b.transpose();
         }
     }
-    for (std::size_t k = 0; k < m; ++k) {
-        trip.emplace_back(static_cast<int>(k), static_cast<int>(k), delta);
-        rhs.row(static_cast<Eigen::Index>(k)) += delta * x[vars[k]].transpose();
+    for (std::size_t k = 0; k < sys.size(); ++k) {
+        sys.add(k, k, delta);
+        sys.rhs.row(static_cast<Eigen::Index>(k)) += delta * x[sys.unknowns.vertices[k]].transpose();
     }
-    Eigen::SparseMatrix<Scalar> A(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
-    A.setFromTriplets(trip.begin(), trip.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<Scalar>> solver(A);
-    if (solver.info() != Eigen::Success) return 0;
-    const Eigen::Matrix<Scalar, Eigen::Dynamic, 3> sol = solver.solve(rhs);
-    if (solver.info() != Eigen::Success || !sol.allFinite()) return 0;
-    for (std::size_t k = 0; k < m; ++k) x[vars[k]] = sol.row(static_cast<Eigen::Index>(k)).transpose();
-    return m;
+    return sys.solve<Eigen::SimplicialLDLT<Eigen::SparseMatrix<Scalar>>>(x);
 }
 
 /// The vertices with free[v] != 0 solve the discrete bi-Laplace equation (L L x)_v = 0,
@@ -129,22 +141,8 @@ inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& top
 inline std::size_t bilaplacian_fill(std::vector<Vec3>& x, const MeshTopology& topo,
                                     const std::vector<std::uint8_t>& free) {
     const std::size_t n = x.size();
-    constexpr Index none = std::numeric_limits<Index>::max();
-    std::vector<Index> col(n, none);
-    std::vector<Index> vars;
-    for (Index v = 0; v < n; ++v)
-        if (free[v] && !topo.vertex_neighbors(v).empty()) {
-            col[v] = vars.size();
-            vars.push_back(v);
-        }
-    const std::size_t m = vars.size();
-    if (m == 0) return 0;
-    // Rows of L needed: the free vertices and their neighbours.
-    std::vector<std::uint8_t> need(n, 0);
-    for (const Index v : vars) {
-        need[v] = 1;
-        for (const Index u : topo.vertex_neighbors(v)) need[u] = 1;
-    }
+    FairSystem sys(topo, n, free);
+    if (sys.size() == 0) return 0;
     // Cotangent weight of each edge (i, j): half the sum of the cotangents opposite it.
     auto cot_weight = [&](Index i, Index j) -> Scalar {
         const auto e = topo.find_edge(i, j);
@@ -162,7 +160,7 @@ inline std::size_t bilaplacian_fill(std::vector<Vec3>& x, const MeshTopology& to
     // L as sparse rows over all vertices (only the needed rows filled).
     std::vector<std::vector<std::pair<Index, Scalar>>> L(n);
     for (Index i = 0; i < n; ++i) {
-        if (!need[i]) continue;
+        if (!sys.rows[i]) continue;
         const auto nb = topo.vertex_neighbors(i);
         if (nb.empty()) continue;
         Scalar sum = 0;
@@ -184,25 +182,13 @@ inline std::size_t bilaplacian_fill(std::vector<Vec3>& x, const MeshTopology& to
         for (const auto& [u, w] : L[i]) diag -= w;
         L[i].emplace_back(i, diag);
     }
-    std::vector<Eigen::Triplet<Scalar>> trip;
-    Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs =
-        Eigen::Matrix<Scalar, Eigen::Dynamic, 3>::Zero(static_cast<Eigen::Index>(m), 3);
-    for (std::size_t r = 0; r < m; ++r)
-        for (const auto& [i, a] : L[vars[r]])
+    for (std::size_t r = 0; r < sys.size(); ++r)
+        for (const auto& [i, a] : L[sys.unknowns.vertices[r]])
             for (const auto& [j, b] : L[i]) {
-                if (col[j] != none) trip.emplace_back(static_cast<int>(r), static_cast<int>(col[j]), a * b);
-                else rhs.row(static_cast<Eigen::Index>(r)) -= a * b * x[j].transpose();
+                if (sys.column(j) != MovableVertices::none) sys.add(r, sys.column(j), a * b);
+                else sys.rhs.row(static_cast<Eigen::Index>(r)) -= a * b * x[j].transpose();
             }
-    Eigen::SparseMatrix<Scalar> A(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
-    A.setFromTriplets(trip.begin(), trip.end());
-    A.makeCompressed();
-    Eigen::SparseLU<Eigen::SparseMatrix<Scalar>> solver;
-    solver.compute(A);
-    if (solver.info() != Eigen::Success) return 0;
-    const Eigen::Matrix<Scalar, Eigen::Dynamic, 3> sol = solver.solve(rhs);
-    if (solver.info() != Eigen::Success || !sol.allFinite()) return 0;
-    for (std::size_t k = 0; k < m; ++k) x[vars[k]] = sol.row(static_cast<Eigen::Index>(k)).transpose();
-    return m;
+    return sys.solve<Eigen::SparseLU<Eigen::SparseMatrix<Scalar>>>(x);
 }
 
 }  // namespace detail

@@ -58,9 +58,7 @@ namespace detail {
 inline std::size_t taubin_smooth(std::vector<Vec3>& positions, const MeshTopology& topo,
                                  const std::vector<std::uint8_t>& movable, const TaubinParams& params,
                                  Progress& progress) {
-    std::vector<Index> active;
-    for (Index v = 0; v < positions.size(); ++v)
-        if ((movable.empty() || movable[v] != 0) && !topo.vertex_neighbors(v).empty()) active.push_back(v);
+    const std::vector<Index> active = movable_vertices(topo, positions.size(), movable).vertices;
     if (active.empty() || params.iterations == 0) return active.size();
     std::vector<Vec3> next(active.size());
     auto step = [&](Scalar factor) {

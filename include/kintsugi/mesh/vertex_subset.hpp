@@ -10,6 +10,9 @@
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/topology.hpp>
+
+#include <limits>
 
 #include <cstdint>
 #include <string>
@@ -44,6 +47,39 @@ template <MutableTriangleMesh M>
 void write_flagged_positions(M& mesh, const std::vector<Vec3>& x, const std::vector<std::uint8_t>& flags) {
     for (Index v = 0; v < x.size(); ++v)
         if (flags.empty() || flags[v] != 0) kintsugi::set_vertex_position(mesh, v, x[v]);
+}
+
+/// The unknowns of a vertex-subset operation: the vertices with flags[v] != 0 (every
+/// vertex when flags is empty) that have a neighbour, increasing, and each vertex's
+/// column among them (`none` for the others).
+struct MovableVertices {
+    static constexpr Index none = std::numeric_limits<Index>::max();
+    std::vector<Index> vertices;
+    std::vector<Index> column;
+};
+
+inline MovableVertices movable_vertices(const MeshTopology& topo, std::size_t nv,
+                                        const std::vector<std::uint8_t>& flags) {
+    MovableVertices m;
+    m.column.assign(nv, MovableVertices::none);
+    for (Index v = 0; v < nv; ++v)
+        if ((flags.empty() || flags[v] != 0) && !topo.vertex_neighbors(v).empty()) {
+            m.column[v] = m.vertices.size();
+            m.vertices.push_back(v);
+        }
+    return m;
+}
+
+/// Marks `vertices` and their neighbours (n flags): the rows of an operator that reads a
+/// one-ring (a Laplacian) and involves one of the vertices.
+inline std::vector<std::uint8_t> rows_near(const MeshTopology& topo, const std::vector<Index>& vertices,
+                                           std::size_t n) {
+    std::vector<std::uint8_t> row(n, 0);
+    for (const Index v : vertices) {
+        row[v] = 1;
+        for (const Index u : topo.vertex_neighbors(v)) row[u] = 1;
+    }
+    return row;
 }
 
 }  // namespace kintsugi::detail
