@@ -25,6 +25,8 @@
 #include <kintsugi/spatial/jet_fit.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -98,6 +100,16 @@ struct CompletionParams {
     /// Seed of the candidate subset and of the thinning (results depend on it only).
     std::uint64_t seed = 0;
     RunControl control{};
+    /// Blend each hole's result with the thin-plate fairing of the same patch, default
+    /// true: the patch's offset from that smooth surface is scaled by the hole's example
+    /// weight λ = max(0, 1 - R_e / R_q), the share of the data's departure from a smooth
+    /// surface that the copied shapes explain. R_e: mean squared distance of the data
+    /// vertices within A of the hole to the shapes they matched (SSD, eq. 2, data only);
+    /// R_q: to a quadric fitted over the same A. λ ≈ 1 where the surroundings repeat
+    /// elsewhere on the object (the relief is copied), 0 where the best matches explain
+    /// them worse than a quadric (a smooth surface: the smooth fill predicts better;
+    /// docs/methods/example_completion.md). false: the minimiser's result, unblended.
+    bool blend_with_smooth = true;
 };
 
 /// Result of complete_holes_example_based.
@@ -112,6 +124,10 @@ struct CompletionResult {
     std::vector<std::vector<Scalar>> energy;
     Scalar mean_edge_length = 0;        ///< l_ave of the data region
     std::vector<StageTiming> timings;   ///< detect, initial patch, level 1..n, write
+    /// Per filled hole (in the order of the selected loops), the weight λ in [0, 1] of the
+    /// example-based offset in the blend (CompletionParams::blend_with_smooth; 1 when off
+    /// or when the hole's surroundings gave no evidence).
+    std::vector<Scalar> example_weight;
 };
 
 namespace detail::completion {
@@ -351,7 +367,9 @@ struct State {
 /// weighted mean of where its normal line meets the surfaces its neighbours matched
 /// (eq. 16), weights 1 outside and 1/s^m inside the hole; (iii) patch edges are split or
 /// collapsed to keep the level's density. An iteration that would raise E is undone and
-/// ends the level, so E never rises within a level.
+/// ends the level, so E never rises within a level. Last, per hole, the patch's offset
+/// from the thin-plate fairing of the same patch is kept in the share λ that the copied
+/// shapes explain of the surroundings better than a quadric (blend_with_smooth).
 ///
 /// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). The existing
 ///         vertices and faces are untouched; new ones are appended. An IndexedMesh with
@@ -508,6 +526,8 @@ CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& p
         const Scalar rb2 = (params.b_radius * lave) * (params.b_radius * lave);
 
         const std::size_t nlev = any_patch_vertex ? params.levels.size() : 0;
+        std::vector<Vec3> residual_at;                     // data vertices of the last Ω'
+        std::vector<std::pair<Scalar, Scalar>> residual;   // their (R_e, R_q); (0, 0) = no evidence
         for (std::size_t level = 0; level < nlev; ++level) {
             const CompletionLevel& L = params.levels[level];
             const double f0 = 0.08 + 0.9 * static_cast<double>(level) / static_cast<double>(nlev);
@@ -827,6 +847,59 @@ CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& p
                 if (prev - hist.back() <= params.tolerance * prev) break;
             }
             out.energy.push_back(std::move(hist));
+
+            // ---- the evidence for the blend: how well the data around the holes is
+            // explained by the shapes it matched (R_e) and by a quadric (R_q), over A.
+            if (params.blend_with_smooth && level + 1 == nlev) {
+                std::vector<Index> fixed;
+                for (std::size_t ai = 0; ai < ev.active.size(); ++ai)
+                    if (!st.omega[ev.active[ai]] && st.match[ev.active[ai]].valid()) fixed.push_back(static_cast<Index>(ai));
+                residual_at.resize(fixed.size());
+                residual.assign(fixed.size(), {0, 0});
+                parallel_for(
+                    0, fixed.size(),
+                    [&](std::size_t k) {
+                        const std::size_t ai = fixed[k];
+                        const Index v = ev.active[ai];
+                        const LocalFrame& F = ev.frame[ai];
+                        const Match mv = st.match[v];
+                        residual_at[k] = st.hm.position(v);
+                        std::vector<Neighbor> nb;
+                        data_tree.radius_search_squared(st.hm.position(v), A2, nb, false);
+                        const Scalar sx = (mv.variant & 1) ? -1 : 1, sy = (mv.variant & 2) ? -1 : 1;
+                        Eigen::Matrix<Scalar, 6, 6> AtA = Eigen::Matrix<Scalar, 6, 6>::Zero();
+                        Eigen::Matrix<Scalar, 6, 1> Atb = Eigen::Matrix<Scalar, 6, 1>::Zero();
+                        std::vector<Vec3> q;
+                        Scalar se = 0;
+                        std::size_t ne = 0;
+                        for (const Neighbor& n : nb) {
+                            if (vf[n.index].empty()) continue;
+                            const Vec3 l = F.local(work.vertices[n.index]);
+                            const Vec3 d = F.local_dir(data_normal[n.index]);
+                            q.push_back(l);
+                            Eigen::Matrix<Scalar, 6, 1> a;
+                            a << 1, l.x(), l.y(), l.x() * l.x(), l.x() * l.y(), l.y() * l.y();
+                            AtA += a * a.transpose();
+                            Atb += a * l.z();
+                            Scalar t = 0;
+                            if (maps.intersect(maps.map(mv.cand), Vec3(sx * l.x(), sy * l.y(), l.z()),
+                                               Vec3(sx * d.x(), sy * d.y(), d.z()), A, t)) {
+                                se += t * t;
+                                ++ne;
+                            }
+                        }
+                        if (q.size() < 12 || ne < q.size() / 2) return;  // too little data: no evidence
+                        const Eigen::Matrix<Scalar, 6, 1> c = AtA.ldlt().solve(Atb);
+                        Scalar sq = 0;
+                        for (const Vec3& l : q) {
+                            const Scalar z = c[0] + c[1] * l.x() + c[2] * l.y() + c[3] * l.x() * l.x() +
+                                             c[4] * l.x() * l.y() + c[5] * l.y() * l.y();
+                            sq += (l.z() - z) * (l.z() - z);
+                        }
+                        residual[k] = {se / static_cast<Scalar>(ne), sq / static_cast<Scalar>(q.size())};
+                    },
+                    16);
+            }
         }
 
         // ---- write out: the live patch vertices and faces, appended in index order.
@@ -841,6 +914,67 @@ CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& p
         for (Index f = nf0; f < st.hm.face_capacity(); ++f)
             if (!st.hm.is_removed_face(f))
                 new_faces.push_back({map[st.hm.face_vertex(f, 0)], map[st.hm.face_vertex(f, 1)], map[st.hm.face_vertex(f, 2)]});
+
+        // ---- the blend with the thin-plate fairing of the same patch, per hole.
+        std::vector<std::size_t> filled_index;  // selected loop -> position in example_weight
+        for (std::size_t li = 0; li < selected.size(); ++li)
+            if (!unfilled[li]) filled_index.push_back(li);
+        out.example_weight.assign(filled_index.size(), Scalar(1));
+        if (params.blend_with_smooth && !new_pos.empty()) {
+            // The hole of each new vertex: new vertices joined by new faces, labelled by
+            // the rim vertex they touch.
+            const std::size_t nn = new_pos.size();
+            std::vector<Index> parent(nn);
+            std::iota(parent.begin(), parent.end(), Index(0));
+            auto root = [&](Index a) {
+                while (parent[a] != a) a = parent[a] = parent[parent[a]];
+                return a;
+            };
+            std::vector<std::uint32_t> rim_hole(nv0, std::numeric_limits<std::uint32_t>::max());
+            for (std::size_t h = 0; h < filled_index.size(); ++h)
+                for (const Index v : selected[filled_index[h]]) rim_hole[v] = static_cast<std::uint32_t>(h);
+            for (const Face& t : new_faces)
+                for (int k = 0; k < 3; ++k) {
+                    const Index a = t[k], b = t[(k + 1) % 3];
+                    if (a >= nv0 && b >= nv0) parent[root(a - nv0)] = root(b - nv0);
+                }
+            std::vector<std::uint32_t> comp_hole(nn, std::numeric_limits<std::uint32_t>::max());
+            for (const Face& t : new_faces)
+                for (int k = 0; k < 3; ++k)
+                    if (t[k] < nv0 && rim_hole[t[k]] != std::numeric_limits<std::uint32_t>::max())
+                        for (const Index u : t)
+                            if (u >= nv0) comp_hole[root(u - nv0)] = rim_hole[t[k]];
+            std::vector<std::uint32_t> hole_of(nn);
+            for (std::size_t i = 0; i < nn; ++i) hole_of[i] = comp_hole[root(static_cast<Index>(i))];
+            // λ per hole from the evidence of the data vertices nearest to its patch.
+            std::vector<Scalar> re(filled_index.size(), 0), rq(filled_index.size(), 0);
+            const KdTree new_tree = KdTree::adopt(std::vector<Vec3>(new_pos));
+            std::vector<Neighbor> nb;
+            for (std::size_t k = 0; k < residual.size(); ++k) {
+                if (residual[k].first == 0 && residual[k].second == 0) continue;
+                new_tree.knn(residual_at[k], 1, nb);
+                if (nb.empty() || hole_of[nb[0].index] >= re.size()) continue;
+                re[hole_of[nb[0].index]] += residual[k].first;
+                rq[hole_of[nb[0].index]] += residual[k].second;
+            }
+            for (std::size_t h = 0; h < re.size(); ++h)
+                if (rq[h] > 0) out.example_weight[h] = std::clamp(1 - re[h] / rq[h], Scalar(0), Scalar(1));
+            // The smooth surface: the thin-plate fairing of the final patch (same
+            // connectivity, the rim fixed); each new vertex keeps λ of its offset from it.
+            std::vector<Vec3> x(work.vertices);
+            x.insert(x.end(), new_pos.begin(), new_pos.end());
+            std::vector<Face> all(work.faces);
+            all.insert(all.end(), new_faces.begin(), new_faces.end());
+            std::vector<std::uint8_t> free(x.size(), 0);
+            std::fill(free.begin() + static_cast<std::ptrdiff_t>(nv0), free.end(), 1);
+            const MeshTopology topo(x.size(), all);
+            progress.check();
+            if (detail::biharmonic_fill(x, topo, free) > 0)
+                for (std::size_t i = 0; i < nn; ++i) {
+                    const Scalar lam = hole_of[i] < out.example_weight.size() ? out.example_weight[hole_of[i]] : Scalar(1);
+                    new_pos[i] = x[nv0 + i] + lam * (new_pos[i] - x[nv0 + i]);
+                }
+        }
         out.timings = progress.finish();
     } catch (const detail::cancelled_exception&) {
         CompletionResult c;
