@@ -1,7 +1,7 @@
 // This Source Code Form is subject to the terms of the Mozilla Public
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
-// `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d 0.14] [--edge-threshold T]
+// `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T]
 // [--edge-iterations N] [--face-iterations N] [--no-features] [--features FEATURES.ply]`:
 // feature-aware bilateral smoothing; the sharp edges can be written as PLY polylines.
 #include "common.hpp"
@@ -20,6 +20,11 @@ struct SmoothOptions {
     std::string input, output, features;
     kintsugi::FeatureBilateralParams params;
     bool no_features = false;
+    // --d and --face-iterations: given, or left to the noise estimate (unset optionals).
+    double d = 0;
+    std::size_t face_iterations = 0;
+    CLI::Option* d_option = nullptr;
+    CLI::Option* face_iterations_option = nullptr;
 };
 
 kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
@@ -33,7 +38,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("--a", p.a, "Edge spatial scale (sigma = a|e|/2, a|e|)")->capture_default_str()->check(positive);
     cmd.add_option("--b", p.b, "Edge range scale (sigma = b|e|)")->capture_default_str()->check(positive);
     cmd.add_option("--c", p.c, "Face spatial scale (sigma = c|e|/2, c|e|)")->capture_default_str()->check(positive);
-    cmd.add_option("--d", p.d, "Face range scale (sigma = d|e|)")->capture_default_str()->check(positive);
+    o->d_option = cmd.add_option("--d", o->d, "Face range scale (sigma = d|e|; default: from the estimated noise level)")
+                      ->check(positive);
     cmd.add_option("--edge-threshold", p.detection.edge_threshold, "Edge strength threshold (paper: 0.251; scans 0.102)")
         ->capture_default_str()
         ->check(kcli::real(0.0, 1.0));
@@ -43,9 +49,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("--edge-iterations", p.edge_iterations, "Passes of the sharp-edge filters")
         ->capture_default_str()
         ->check(kcli::count(0, 10000));
-    cmd.add_option("--face-iterations", p.face_iterations, "Passes of the face filters")
-        ->capture_default_str()
-        ->check(kcli::count(0, 10000));
+    o->face_iterations_option = cmd.add_option("--face-iterations", o->face_iterations,
+                                               "Passes of the face filters (default: from the estimated noise level)")
+                                    ->check(kcli::count(0, 10000));
     cmd.add_flag("--no-features", o->no_features, "Run the face filters alone, without sharp-edge handling");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
@@ -61,6 +67,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
 
         kintsugi::FeatureBilateralParams params = o->params;
         params.features = !o->no_features;
+        if (o->d_option->count() > 0) params.d = o->d;
+        if (o->face_iterations_option->count() > 0) params.face_iterations = o->face_iterations;
         params.control = ctx.control("smooth");
         ctx.doing("smoothing the " + kcli::grouped(mesh.faces.size()) + " faces of " + o->input);
         const kintsugi::FeatureBilateralResult r = kintsugi::smooth_feature_bilateral(mesh, params);
@@ -86,11 +94,19 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["a"] = params.a;
         j["parameters"]["b"] = params.b;
         j["parameters"]["c"] = params.c;
-        j["parameters"]["d"] = params.d;
+        j["parameters"]["d"] = r.d;
         j["parameters"]["edge_threshold"] = params.detection.edge_threshold;
         j["parameters"]["voting_cube"] = params.detection.voting_cube;
         j["parameters"]["edge_iterations"] = params.edge_iterations;
-        j["parameters"]["face_iterations"] = params.face_iterations;
+        j["parameters"]["face_iterations"] = r.face_iterations;
+        j["parameters"]["d_from_noise"] = !params.d.has_value();
+        j["parameters"]["face_iterations_from_noise"] = !params.face_iterations.has_value();
+        if (r.noise_estimated) {
+            j["noise"]["sigma"] = r.noise.sigma;
+            j["noise"]["relative"] = r.noise.relative;
+            j["noise"]["clean_edge_length"] = r.noise.clean_edge_length;
+            j["noise"]["vertices_used"] = r.noise.vertices_used;
+        }
         j["parameters"]["features"] = params.features;
         j["vertices"] = r.vertices;
         j["faces"] = r.faces;

@@ -26,6 +26,7 @@
 #include <map>
 #include <cmath>
 #include <numbers>
+#include <random>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -109,6 +110,38 @@ inline ks::IndexedMesh add_normal_noise(const ks::IndexedMesh& m, double amplitu
         const double r = double(x >> 8) / double(1u << 24) * 2 - 1;
         out.vertices[v] += amplitude * r * n[v];
     }
+    return out;
+}
+
+/// Gaussian noise of standard deviation `sigma` (model units), deterministic for a
+/// seed on every platform (std::mt19937 and a Box–Muller transform of our own, not
+/// std::normal_distribution, whose output the standard leaves open). `along_normals`:
+/// each vertex moves along its area-weighted normal; otherwise along a uniformly
+/// random unit direction, by a Gaussian amount. `normal_rms` (if given) receives the
+/// rms of the displacements' components along the clean normals: the noise normal to
+/// the surface, which estimate_noise_level estimates.
+inline ks::IndexedMesh add_gaussian_noise(const ks::IndexedMesh& m, double sigma, bool along_normals,
+                                          std::uint32_t seed, double* normal_rms = nullptr) {
+    ks::IndexedMesh out = m;
+    out.normals.clear();
+    const auto n = ks::vertex_normals(m);
+    std::mt19937 g(seed);
+    auto u01 = [&] { return (double(g() >> 5) + 0.5) / double(1u << 27); };
+    auto gauss = [&] { return std::sqrt(-2 * std::log(u01())) * std::cos(2 * std::numbers::pi * u01()); };
+    double acc = 0;
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+        ks::Vec3 d;
+        if (along_normals) {
+            d = sigma * gauss() * n[v];
+        } else {
+            ks::Vec3 u(gauss(), gauss(), gauss());
+            u.normalize();
+            d = sigma * gauss() * u;
+        }
+        out.vertices[v] += d;
+        acc += d.dot(n[v]) * d.dot(n[v]);
+    }
+    if (normal_rms) *normal_rms = std::sqrt(acc / double(m.vertices.size()));
     return out;
 }
 

@@ -16,6 +16,7 @@
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/taubin.hpp>
+#include <kintsugi/mesh/noise_level.hpp>
 #include <kintsugi/metrics/denoise.hpp>
 #include <kintsugi/smooth/feature_bilateral.hpp>
 
@@ -203,7 +204,7 @@ TEST_CASE_TEMPLATE("smooth_feature_bilateral denoises a noisy box on every mesh 
     CHECK(r.vertices == clean.vertices.size());
     CHECK(r.faces == clean.faces.size());
     CHECK(r.feature_vertices > 0);
-    CHECK(r.timings.size() == 4);
+    CHECK(r.timings.size() == 5);  // topology, noise level, features, edge and face smoothing
     const auto out = h.get();
     REQUIRE(all_finite(out));
     const auto before = ks::denoise_metrics(noisy, clean);
@@ -232,7 +233,7 @@ TEST_CASE("features = false runs the same filters without feature handling") {
     CHECK(ro.features.sharp_edges.empty());
     CHECK(ro.feature_vertices == 0);
     CHECK(rw.feature_vertices > 0);
-    CHECK(ro.timings.size() == 2);  // topology, face smoothing
+    CHECK(ro.timings.size() == 3);  // topology, noise level, face smoothing
     CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
           ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
     CHECK(with.vertices != without.vertices);
@@ -512,5 +513,141 @@ TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers"
         CHECK(mo.mean_normal_angle_deg <= mp.mean_normal_angle_deg);
         CHECK(mo.vertex_rms <= mp.vertex_rms);
         CHECK(std::abs(ks::signed_volume(ours) / ks::signed_volume(noisy) - 1) <= 0.005);
+    }
+}
+
+// ---------------------------------------------------------------- noise level
+
+namespace {
+// The estimate against the noise normal to the surface (its rms over the vertices)
+// for Gaussian noise of 0.1 to 0.8 mean edge lengths along the normals and along random
+// directions (from `from`|e| on); returns the worst ratio's distance from 1.
+double noise_level_worst(const ks::IndexedMesh& clean, const std::string& name, double from = 0.1) {
+    const double L = ks::mean_edge_length(clean);
+    double worst = 0;
+    for (bool along : {true, false})
+        for (double k : {0.1, 0.3, 0.5, 0.7, 0.8}) {
+            if (k < from) continue;
+            double truth = 0;
+            const auto noisy = ss::add_gaussian_noise(clean, k * L, along, 17, &truth);
+            const ks::NoiseLevel e = ks::estimate_noise_level(noisy);
+            REQUIRE(e.status == ks::Status::ok);
+            CHECK(e.vertices_used == clean.vertices.size());
+            const double ratio = e.sigma / truth;
+            MESSAGE(name << (along ? " normals " : " random  ") << k << "|e|: truth " << truth / L << "|e|, estimate "
+                         << e.sigma / L << "|e| (ratio " << ratio << "), clean |e| estimate "
+                         << e.clean_edge_length / L << "|e|");
+            CHECK(ratio > 0.75);
+            CHECK(ratio < 1.25);
+            if (along) CHECK(e.clean_edge_length / L == doctest::Approx(1.0).epsilon(0.1));
+            worst = std::max(worst, std::abs(ratio - 1));
+        }
+    return worst;
+}
+}  // namespace
+
+TEST_CASE("estimate_noise_level: within 25 % of the normal noise from 0.1 to 0.8 |e| on a CAD and a curved shape") {
+    // The ring count was chosen on the guided-denoising pairs (Block0.4, SharpSphere0.3,
+    // Twelve0.5Impulsive); these shapes were not used for it.
+    CHECK(noise_level_worst(ss::box_mesh(24), "box") < 0.25);
+    auto twelve = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
+    twelve.normals.clear();
+    CHECK(noise_level_worst(twelve, "twelve.obj") < 0.25);
+    // A coarse curved mesh (1,839 vertices): its own facets read as noise of about
+    // 0.1|e| (a quadric does not follow the bunny's ears over two rings), which
+    // dominates below 0.3|e| (0.1|e| along the normals reads 1.38 times the truth).
+    auto bunny = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off");
+    CHECK(noise_level_worst(bunny, "bunny.off", 0.3) < 0.25);
+    CHECK(ks::estimate_noise_level(bunny).relative > 0.05);
+    // A clean box reads as noise-free: its faces are planes, every fit away from the
+    // box edges is exact.
+    const auto clean = ks::estimate_noise_level(ss::box_mesh(24));
+    CHECK(clean.sigma < 1e-9);
+    CHECK(clean.relative < 1e-9);
+}
+
+TEST_CASE("estimate_noise_level: scale, bad input, cancellation, thread count") {
+    const auto noisy = ss::add_gaussian_noise(ss::box_mesh(16), 0.02, true, 5);
+    const auto e = ks::estimate_noise_level(noisy);
+    // Scaling the mesh by 1e6 (or 1e-200) scales sigma exactly: the fit runs in a
+    // power-of-two frame.
+    for (double f : {1e6, 1e-200}) {
+        auto big = noisy;
+        for (auto& p : big.vertices) p *= f;
+        const auto eb = ks::estimate_noise_level(big);
+        CHECK(eb.sigma / f == doctest::Approx(e.sigma).epsilon(1e-9));
+        CHECK(eb.relative == doctest::Approx(e.relative).epsilon(1e-9));
+    }
+    auto expect_throw = [](auto&& call, const char* what) {
+        try {
+            call();
+            FAIL("no exception");
+        } catch (const ks::invalid_input& ex) {
+            CHECK(std::string(ex.what()).find(what) != std::string::npos);
+        }
+    };
+    expect_throw([] { (void)ks::estimate_noise_level(ks::IndexedMesh{}); }, "no faces");
+    expect_throw([&] { (void)ks::estimate_noise_level(noisy, {.rings = 0}); }, "rings = 0");
+    auto bad = noisy;
+    bad.vertices[2].y() = std::numeric_limits<double>::infinity();
+    expect_throw([&] { (void)ks::estimate_noise_level(bad); }, "vertex 2");
+    bad = noisy;
+    bad.faces[1][2] = 100000;
+    expect_throw([&] { (void)ks::estimate_noise_level(bad); }, "face 1 uses vertex 100000");
+
+    std::stop_source stop;
+    stop.request_stop();
+    ks::NoiseLevelParams p;
+    p.control.stop = stop.get_token();
+    const auto c = ks::estimate_noise_level(noisy, p);
+    CHECK(c.status == ks::Status::cancelled);
+    CHECK(c.sigma == 0);
+
+    ks::NoiseLevel one;
+    {
+        ks::ThreadLimit limit(1);
+        one = ks::estimate_noise_level(noisy);
+    }
+    CHECK(one.sigma == e.sigma);
+    CHECK(one.clean_edge_length == e.clean_edge_length);
+}
+
+TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated noise unless given") {
+    const auto clean = ss::box_mesh(16);
+    const double L0 = ks::mean_edge_length(clean);
+    SUBCASE("unset: estimated, reported, and growing with the noise") {
+        double truth_low = 0, truth_high = 0;
+        auto low = ss::add_gaussian_noise(clean, 0.1 * L0, true, 3, &truth_low);
+        auto high = ss::add_gaussian_noise(clean, 0.8 * L0, true, 3, &truth_high);
+        const auto rl = ks::smooth_feature_bilateral(low);
+        const auto rh = ks::smooth_feature_bilateral(high);
+        REQUIRE(rl.noise_estimated);
+        REQUIRE(rh.noise_estimated);
+        CHECK(rl.noise.sigma == doctest::Approx(truth_low).epsilon(0.25));
+        CHECK(rh.noise.sigma == doctest::Approx(truth_high).epsilon(0.25));
+        CHECK(rl.d == 0.14);  // low noise: the measured default
+        CHECK(rl.face_iterations == 3);
+        CHECK(rh.d > 0.2);  // strong noise: a wider range, more passes
+        CHECK(rh.face_iterations > 3);
+        CHECK(rh.face_iterations <= 8);
+    }
+    SUBCASE("explicit values win and skip the estimate; the output is that of the same values set by hand") {
+        const auto noisy = ss::add_gaussian_noise(clean, 0.8 * L0, true, 3);
+        auto a = noisy, b = noisy;
+        const auto ra = ks::smooth_feature_bilateral(a, {.d = 0.14, .face_iterations = 3});
+        CHECK_FALSE(ra.noise_estimated);
+        CHECK(ra.noise.sigma == 0);
+        CHECK(ra.d == 0.14);
+        CHECK(ra.face_iterations == 3);
+        // Only d given: the iterations still come from the estimate, d does not.
+        const auto rb = ks::smooth_feature_bilateral(b, {.d = 0.3});
+        CHECK(rb.noise_estimated);
+        CHECK(rb.d == 0.3);
+        CHECK(rb.face_iterations > 3);
+        // The automatic choice equals passing the values it reports.
+        auto c = noisy, e = noisy;
+        const auto rc = ks::smooth_feature_bilateral(c);
+        (void)ks::smooth_feature_bilateral(e, {.d = rc.d, .face_iterations = rc.face_iterations});
+        CHECK(c.vertices == e.vertices);
     }
 }

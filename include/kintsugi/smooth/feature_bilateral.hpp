@@ -16,7 +16,8 @@
 ///
 /// @code
 /// kintsugi::IndexedMesh mesh = kintsugi::read_mesh("scan.ply");
-/// auto r = kintsugi::smooth_feature_bilateral(mesh);          // paper's defaults
+/// auto r = kintsugi::smooth_feature_bilateral(mesh);          // d, face iterations from the noise
+/// // r.noise.sigma: the noise level estimated on the input; r.d, r.face_iterations: used
 /// auto f = kintsugi::detect_sharp_features(mesh, {.edge_threshold = 0.102}); // scans
 /// @endcode
 ///
@@ -69,9 +70,22 @@
 /// - Sharp edges bound the face filters (`separate_features`): in filters 3 and 4 a face
 ///   of the cube counts only when a walk over the cube's faces reaches it from r's own
 ///   faces without crossing a sharp edge.
-/// - Face filter scales: c = 1, d = 0.14, ten filter-3 and two filter-4 passes per face
-///   iteration, three face iterations (paper: c = 2, d = 0.1, one, one, two).
+/// - Face filter scales: c = 1, d = 0.14 (or from the noise, below), ten filter-3 and two
+///   filter-4 passes per face iteration, three face iterations or more from the noise
+///   (paper: c = 2, d = 0.1, one, one, two).
 /// - Sharp-edge vertices take part in filter 4 (`keep_edge_vertices` = false).
+///
+/// ## Parameters from the data (the paper's future work)
+/// When `d` or `face_iterations` is left unset (the default), the input's noise level
+/// is estimated first (estimate_noise_level, mesh/noise_level.hpp: the median of
+/// local quadric-fit residual variances, σ normal to the surface) and, with
+/// r = σ/|e| (|e| the input's mean edge length, as for every scale here),
+/// d = max(0.14, 0.5·(r − 0.05)) and face_iterations = min(8, 3 + round(20·max(0, r − 0.38))):
+/// the measured defaults up to r ≈ 0.33 (noise of about 0.3|e|), a wider range and more
+/// passes above, where a fixed d|e| below the noise left filter 4 moving nothing.
+/// Explicit values are used as given and skip the estimate; the estimate and the
+/// values used are in the result (`noise`, `d`, `face_iterations`). Measurements in
+/// docs/methods/feature_bilateral.md.
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
@@ -95,6 +109,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/noise_level.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
 #include <kintsugi/smooth/sharp_feature_params.hpp>
@@ -105,6 +120,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -134,11 +150,16 @@ struct FeatureBilateralParams {
     Scalar a = 2;    ///< edge spatial scale: σ_mef = a|e|/2, σ_ef = a|e| (paper: 2)
     Scalar b = 0.1;  ///< edge range scale: σ_eg = b|e| (paper: 0.1)
     Scalar c = 1;    ///< face spatial scale: σ_mf = c|e|/2, σ_f = c|e| (paper: 2; measured, see above)
-    Scalar d = 0.14;  ///< face range scale: σ_g = d|e| (paper: 0.1; measured, see above)
+    /// Face range scale: σ_g = d|e| (paper: 0.1). Unset (default): set from the noise
+    /// level estimated on the input (see "Parameters from the data" above); explicit
+    /// values are used as given. Range: positive.
+    std::optional<Scalar> d{};
     /// The sharp-edge detection (its `control` is not used: `control` below governs the run).
     SharpFeatureParams detection{};
     std::size_t edge_iterations = 2;  ///< passes of filters 1–2 (paper: 2)
-    std::size_t face_iterations = 3;  ///< passes of filters 3–4 (paper: 2; measured)
+    /// Passes of filters 3–4 (paper: 2). Unset (default): set from the estimated noise
+    /// level (see "Parameters from the data" above). Range 0–10000.
+    std::optional<std::size_t> face_iterations{};
     bool features = true;  ///< false: no feature detection, filters 3–4 alone
     std::size_t normal_iterations = 10;    ///< passes of filter 3 per face iteration (paper: 1; measured)
     std::size_t vertex_iterations = 2;     ///< passes of filter 4 per face iteration (paper: 1; measured)
@@ -154,9 +175,16 @@ struct FeatureBilateralResult {
     std::size_t vertices = 0, faces = 0;
     std::size_t feature_vertices = 0;  ///< vertices on sharp edges (moved by filters 1–2)
     std::size_t degenerate_faces = 0;  ///< faces of zero area in the input
-    std::vector<StageTiming> timings;  ///< "topology", "features", "edge smoothing", "face smoothing"
+    /// "topology", "noise level" (when estimated), "features", "edge smoothing", "face smoothing"
+    std::vector<StageTiming> timings;
     /// Faces repeating an earlier face (same corners, same cyclic order): smoothed as one.
     std::size_t duplicate_faces = 0;
+    /// The noise level estimated on the input (estimate_noise_level, model units);
+    /// status ok and all figures 0 when d and face_iterations were both given.
+    NoiseLevel noise{};
+    bool noise_estimated = false;  ///< whether `noise` was estimated (d or face_iterations unset)
+    Scalar d = 0;                  ///< the face range scale used
+    std::size_t face_iterations = 0;  ///< the face iterations used
 };
 
 namespace detail::fbs {
@@ -225,6 +253,19 @@ inline FeatureData run_detection(const IndexedMesh& m, const MeshTopology& topo,
     pre.vertex_c = p.presmooth_vertex_scale;
     return detect_features_presmoothed(m.vertices, m.faces, topo, L, p, pre, p.presmooth_iterations, has_face,
                                        progress, ws);
+}
+
+/// The face filter's range scale and iteration count set from the noise level
+/// r = σ/|e| (σ from estimate_noise_level, |e| the input's mean edge length) when the
+/// caller leaves them unset; see "Parameters from the data" in the file comment.
+struct DataScales {
+    Scalar d;
+    std::size_t face_iterations;
+};
+inline DataScales scales_from_noise(Scalar r) {
+    const Scalar over = std::max<Scalar>(r - Scalar(0.38), 0);
+    return {std::max<Scalar>(0.14, Scalar(0.5) * (r - Scalar(0.05))),
+            std::min<std::size_t>(8, 3 + static_cast<std::size_t>(std::lround(20 * over)))};
 }
 
 inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
@@ -384,10 +425,10 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
     fbs::check_positive(fn, "a", params.a);
     fbs::check_positive(fn, "b", params.b);
     fbs::check_positive(fn, "c", params.c);
-    fbs::check_positive(fn, "d", params.d);
+    if (params.d) fbs::check_positive(fn, "d", *params.d);
     fbs::check_detection(fn, detection);
     fbs::check_count(fn, "edge_iterations", params.edge_iterations);
-    fbs::check_count(fn, "face_iterations", params.face_iterations);
+    if (params.face_iterations) fbs::check_count(fn, "face_iterations", *params.face_iterations);
     fbs::check_count(fn, "normal_iterations", params.normal_iterations);
     fbs::check_count(fn, "vertex_iterations", params.vertex_iterations);
     fbs::SpatialOrder so = [&] {
@@ -414,13 +455,25 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         const std::size_t nv = m.vertices.size();
         const std::vector<unsigned char> has_face = fbs::used_vertices(m);
         std::vector<unsigned char> fixed(nv, 0);
-        const fbs::FilterSettings fs{params.a, params.b, params.c, params.d, params.edge_iterations,
-                                     params.face_iterations, params.features, params.normal_iterations,
+        if (!params.d || !params.face_iterations) {
+            progress.stage("noise level", 0.02, 0.04);
+            result.noise = detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
+            result.noise_estimated = true;
+        }
+        const fbs::DataScales auto_scales = fbs::scales_from_noise(result.noise.sigma / L);
+        result.d = params.d ? *params.d : auto_scales.d;
+        result.face_iterations = params.face_iterations ? *params.face_iterations : auto_scales.face_iterations;
+        result.noise.sigma = so.frame.to_world(result.noise.sigma);
+        result.noise.mean_edge_length = so.frame.to_world(result.noise.mean_edge_length);
+        result.noise.clean_edge_length = so.frame.to_world(result.noise.clean_edge_length);
+        const std::size_t face_iterations = result.face_iterations;
+        const fbs::FilterSettings fs{params.a, params.b, params.c, result.d, params.edge_iterations,
+                                     face_iterations, params.features, params.normal_iterations,
                                      params.vertex_iterations};
         fbs::Barriers barriers;
         fbs::Workspace ws;
         if (params.features) {
-            progress.stage("features", 0.02, 0.45);
+            progress.stage("features", 0.04, 0.45);
             auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress, ws);
             std::vector<unsigned char> on_edge(nv, 0);
             for (const auto& e : fd.sharp_edges) on_edge[e[0]] = on_edge[e[1]] = 1;
@@ -446,9 +499,9 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             result.features = fbs::to_public(std::move(fd), so.frame.to_world(L));
             fbs::restore_order(result.features, so.order);
         }
-        progress.stage("face smoothing", params.features ? 0.5 : 0.02, 1.0);
-        for (std::size_t it = 0; it < params.face_iterations; ++it) {
-            const double n = static_cast<double>(params.face_iterations);
+        progress.stage("face smoothing", params.features ? 0.5 : 0.04, 1.0);
+        for (std::size_t it = 0; it < face_iterations; ++it) {
+            const double n = static_cast<double>(face_iterations);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
                                 static_cast<double>(it + 1) / n, ws, &barriers, it > 0);
         }
