@@ -57,6 +57,7 @@
 #include <kintsugi/mesh/topology.hpp>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
