@@ -215,6 +215,93 @@ TEST_CASE("RBFOctreeField: duplicates and near-duplicates are merged, never a Na
     }
 }
 
+TEST_CASE("RBFOctreeField: a cluster of copies is merged in linear time, also at merge_distance = 0") {
+    V pts, nrm;
+    sphere_points(3000, 13, pts, nrm);
+    const double diag = diagonal(pts);
+    const ks::Vec3 p0 = pts[7], n0 = nrm[7];
+    // 20,000 copies of one point, then 2,000 near-copies 1e-9 apart along a line (the
+    // pairwise merge of the first would visit 4e8 pairs; without a merge at 0 the
+    // copies would form one dense cell of identical centres).
+    for (int i = 0; i < 20000; ++i) {
+        pts.push_back(p0);
+        nrm.push_back(i % 2 ? n0 : ks::Vec3(-n0));
+    }
+    const ks::Vec3 p1 = pts[11];
+    for (int i = 1; i <= 2000; ++i) {
+        pts.push_back(p1 + ks::Vec3(1e-9 * i / 2000, 0, 0));
+        nrm.push_back(nrm[11]);
+    }
+    for (const double md : {1e-6, 0.0}) {
+        CAPTURE(md);
+        const auto res = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 60, .merge_distance = md});
+        REQUIRE(res.status == ks::Status::ok);
+        // at 0 only the exact copies go
+        CHECK(res.stats.merged_points == (md > 0 ? 22000u : 20000u));
+        CHECK(res.stats.ill_conditioned_cells == (md > 0 ? 0u : res.stats.ill_conditioned_cells));
+        if (md > 0) CHECK(res.stats.max_points_per_cell <= 60 + 20);
+        CHECK(std::abs(res.field(p0)) <= 1e-6 * diag);
+        for (std::size_t i = 0; i < 3000; i += 7) CHECK(std::abs(res.field(pts[i])) <= 1e-6 * diag);
+        CHECK(std::isfinite(res.field(p1)));
+    }
+    // Cancellation during the duplicate search.
+    ks::RBFOctreeParams prm{.n_max = 60};
+    prm.control.progress = [](const ks::ProgressEvent& e) { return e.stage != std::string_view("rbf_offsets"); };
+    CHECK(ks::RBFOctreeField::build(ks::with_normals(pts, nrm), prm).status == ks::Status::cancelled);
+    // Fewer than 4 distinct points after the merge.
+    const V few{p0, p0, p0, p1, p1, ks::Vec3(p1 + ks::Vec3(1e-12, 0, 0)), ks::Vec3(0, 0, 0)};
+    const V few_n(few.size(), ks::Vec3(0, 0, 1));
+    CHECK_THROWS_WITH_AS(ks::RBFOctreeField::build(ks::with_normals(few, few_n)),
+                         doctest::Contains("needs at least 4 distinct points, got 3"), ks::invalid_input);
+}
+
+TEST_CASE("RBFOctreeField: smoothing λ > 0 brings the surface closer to the truth on noisy samples") {
+    // 8,000 points of the unit sphere moved along the normal by Gaussian noise of
+    // 0.5 % of the radius (exact normals). λ = 0 interpolates the noise; λ = 0.1 (in
+    // the cells' normalised units) follows it less.
+    V pts, nrm;
+    std::mt19937_64 rng(21);
+    std::normal_distribution<double> g;
+    for (int i = 0; i < 8000; ++i) {
+        const ks::Vec3 v = ks::Vec3(g(rng), g(rng), g(rng)).normalized();
+        pts.push_back(v * (1 + 0.005 * g(rng)));
+        nrm.push_back(v);
+    }
+    std::array<double, 2> on_truth{}, at_samples{};
+    for (const int k : {0, 1}) {
+        const auto r = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 100, .smoothing = k ? 0.1 : 0.0});
+        REQUIRE(r.status == ks::Status::ok);
+        std::mt19937_64 r2(5);
+        for (int i = 0; i < 4000; ++i) {  // |f| on the true sphere ≈ its distance to the zero set
+            const ks::Vec3 v = ks::Vec3(g(r2), g(r2), g(r2)).normalized();
+            on_truth[k] += std::abs(r.field(v)) / 4000;
+        }
+        for (const auto& p : pts) at_samples[k] += std::abs(r.field(p)) / 8000;
+    }
+    MESSAGE("noisy sphere: mean |f| on the true sphere " << on_truth[0] << " (λ = 0), " << on_truth[1]
+                                                        << " (λ = 0.1)");
+    CHECK(at_samples[0] <= 1e-9);  // λ = 0 interpolates
+    CHECK(at_samples[1] >= 1e-4);  // λ > 0 does not
+    CHECK(on_truth[1] <= 0.6 * on_truth[0]);
+}
+
+TEST_CASE("RBFOctreeField: identical with 1 and 2 threads at 40K points (chunked octree lists)") {
+    V pts, nrm;
+    sphere_points(40000, 14, pts, nrm);
+    std::vector<std::vector<double>> values;
+    for (const int threads : {1, 2}) {
+        const ks::ThreadLimit limit(threads);
+        const auto r = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 80});
+        REQUIRE(r.status == ks::Status::ok);
+        std::vector<double> v;
+        for (std::size_t i = 0; i < pts.size(); i += 13) v.push_back(r.field(1.01 * pts[i] - 0.003 * nrm[i]));
+        for (const auto& c : r.field.cells()) v.push_back(c.side + static_cast<double>(c.centres));
+        values.push_back(std::move(v));
+    }
+    REQUIRE(values[0].size() == values[1].size());
+    CHECK(std::memcmp(values[0].data(), values[1].data(), values[0].size() * sizeof(double)) == 0);
+}
+
 TEST_CASE("reconstruct_rbf_octree: sphere and torus -> closed meshes near the exact surface") {
     {
         V pts, nrm;
@@ -388,9 +475,14 @@ TEST_CASE("RBFOctreeField: bad input throws invalid_input naming the fix, input 
         }
     };
     expect(pts, nrm, {.n_max = 9}, "n_max = 9 is below 10");
-    expect(pts, nrm, {.overlap = 0.9}, "overlap = 0.9 must be >= 1");
-    expect(pts, nrm, {.activity = 0.5}, "activity = 0.5 must be >= 1");
+    expect(pts, nrm, {.overlap = 0.9}, "overlap = 0.9 must lie in [1, 3]");
+    expect(pts, nrm, {.activity = 0.5}, "activity = 0.5 must lie in [1, 3]");
     expect(pts, nrm, {.root_size = 0}, "root_size");
+    // 1e-7 would ask for 1e21 root cubes.
+    expect(pts, nrm, {.root_size = 1e-7}, "root_size = 1e-07 must lie in [1/64, 1]");
+    // Boxes above 3 x the cell reach past the neighbours the binning and the blend visit.
+    expect(pts, nrm, {.overlap = 3.5}, "overlap = 3.5 must lie in [1, 3]");
+    expect(pts, nrm, {.activity = 4}, "activity = 4 must lie in [1, 3]");
     expect(pts, nrm, {.offset_scale = -1}, "offset_scale");
     expect(pts, nrm, {.smoothing = -1}, "smoothing");
     expect(pts, nrm, {.merge_distance = std::nan("")}, "merge_distance");

@@ -29,15 +29,19 @@
 #include <kintsugi/field/isosurface.hpp>
 #include <kintsugi/rbf/detail/rbf_solve.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
+#include <kintsugi/spatial/morton.hpp>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <string>
+#include <tuple>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -49,22 +53,24 @@ struct RBFOctreeParams {
     /// n_max >= 10: a cell splits into 8 while more centres (points and offsets) are
     /// assigned to it. 250: the paper's optimum (time ∝ (a²/6 + c0 a + c1 + c2/a) N).
     std::size_t n_max = 250;
-    /// Overlap α >= 1: a cell takes the centres within α/2 x its side of its centre
-    /// along each axis. The paper's 1.3-1.4 balances seams against time.
+    /// Overlap α in [1, 3]: a cell takes the centres within α/2 x its side of its
+    /// centre along each axis. The paper's 1.3-1.4 balances seams against time.
     Scalar overlap = 1.35;
-    /// Activity β >= 1: a cell with no on-surface point in its β-enlarged box is dead
+    /// Activity β in [1, 3]: a cell with no on-surface point in its β-enlarged box is dead
     /// (no RBF) unless the surface may cross it between samples (docs). The paper's 1.05.
     Scalar activity = 1.05;
-    /// Side of the root cubes tiling the bounding box, as a fraction (0, 1] of its
+    /// Side of the root cubes tiling the bounding box, as a fraction [1/64, 1] of its
     /// longest side (the paper: "smaller than 1" in the unit cube). 1: one root.
     Scalar root_size = 1;
     /// Offset distance d_i = offset_scale x the mean distance from p_i to its 6 nearest
     /// points (> 0), then halved while another point is nearer to p_i ± d_i n_i than
     /// p_i is (Carr et al. 2001). 1: offsets one sample spacing off the surface.
     Scalar offset_scale = 1;
-    /// Smoothing λ >= 0 (Carr et al.'s regularised fit): added to the diagonal of each
-    /// cell's interpolation matrix in the cell's normalised coordinates (its overlap
-    /// box is [-1, 1]³). 0 interpolates every point; 1e-3 to 1e-1 for noisy scans.
+    /// Smoothing λ >= 0 (Carr et al.'s regularised fit), dimensionless: added to the
+    /// diagonal of each cell's matrix in the cell's normalised units (distances and
+    /// values divided by h = α x side / 2), so a centre's value is missed by λ w_i h
+    /// and cells of every size are smoothed alike. 0 interpolates every point; 0.01 to
+    /// 1 for noisy scans (0.5 % noise on a sphere: 0.1 halves the error, docs).
     Scalar smoothing = 0;
     /// Cubes along the longest side of the bounding box for reconstruct_rbf_octree's
     /// polygonisation, in [8, 4096]. Ignored by RBFOctreeField::build.
@@ -73,8 +79,9 @@ struct RBFOctreeParams {
     /// with C¹ weights (no seams); false: the paper's evaluation, the RBF of the cell
     /// holding x alone (seams of the size of the fit error at cell faces).
     bool blend = true;
-    /// Points closer than this fraction of the bounding-box diagonal to an earlier
-    /// point are merged into it (>= 0): near-duplicates would make a system singular.
+    /// Points within this fraction (>= 0) of the bounding-box diagonal of an earlier
+    /// kept point are merged into it; exact duplicates always are (also at 0).
+    /// Near-duplicates would make a system singular.
     Scalar merge_distance = 1e-6;
     /// Progress callback and cancellation.
     RunControl control{};
@@ -381,12 +388,15 @@ inline void rbf_validate(const std::vector<Vec3>& pts, const std::vector<Vec3>& 
     auto num = [](Scalar x) { return format_number(x); };
     if (p.n_max < 10)
         throw invalid_input(fn + "n_max = " + std::to_string(p.n_max) + " is below 10; use 10 or more (the paper: 250)");
-    if (!(p.overlap >= 1) || !std::isfinite(p.overlap))
-        throw invalid_input(fn + "overlap = " + num(p.overlap) + " must be >= 1 and finite (the paper: 1.3 to 1.4)");
-    if (!(p.activity >= 1) || !std::isfinite(p.activity))
-        throw invalid_input(fn + "activity = " + num(p.activity) + " must be >= 1 and finite (the paper: 1.05)");
-    if (!(p.root_size > 0 && p.root_size <= 1))
-        throw invalid_input(fn + "root_size = " + num(p.root_size) + " must lie in (0, 1] (1: one root cube)");
+    // Above 3 a box would reach past the 26 neighbours of its cell, which the root
+    // binning and the blend visit.
+    if (!(p.overlap >= 1 && p.overlap <= 3))
+        throw invalid_input(fn + "overlap = " + num(p.overlap) + " must lie in [1, 3] (the paper: 1.3 to 1.4)");
+    if (!(p.activity >= 1 && p.activity <= 3))
+        throw invalid_input(fn + "activity = " + num(p.activity) + " must lie in [1, 3] (the paper: 1.05)");
+    if (!(p.root_size >= Scalar(1) / 64 && p.root_size <= 1))
+        throw invalid_input(fn + "root_size = " + num(p.root_size) +
+                            " must lie in [1/64, 1] (at most 64 root cubes along the longest side; 1: one root)");
     if (!(p.offset_scale > 0) || !std::isfinite(p.offset_scale))
         throw invalid_input(fn + "offset_scale = " + num(p.offset_scale) + " must be positive and finite (e.g. 1)");
     if (!(p.smoothing >= 0) || !std::isfinite(p.smoothing))
@@ -397,35 +407,11 @@ inline void rbf_validate(const std::vector<Vec3>& pts, const std::vector<Vec3>& 
     if (nrm.size() != pts.size())
         throw invalid_input(fn + "the points have no normals (or not one per point); estimate oriented normals "
                                  "first (kintsugi::estimate_normals)");
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-        const std::string which = "point " + std::to_string(i);
-        if (!pts[i].allFinite()) throw invalid_input(fn + which + " has a NaN or infinite coordinate; remove it first");
+    check_finite_points(pts, fn + "point ");
+    for (std::size_t i = 0; i < nrm.size(); ++i)
         if (!nrm[i].allFinite() || !(nrm[i].cwiseAbs().maxCoeff() > 0))
-            throw invalid_input(fn + "the normal of " + which +
+            throw invalid_input(fn + "the normal of point " + std::to_string(i) +
                                 " is zero, NaN or infinite; fix or re-estimate the normals (kintsugi::estimate_normals)");
-    }
-}
-
-/// Keeps point i unless an earlier kept point lies within `dist` (deterministic).
-inline std::vector<std::uint8_t> rbf_merge(const std::vector<Vec3>& pts, Scalar dist) {
-    const std::size_t n = pts.size();
-    std::vector<std::uint8_t> keep(n, 1);
-    if (!(dist > 0)) return keep;
-    const KdTree tree(pts);
-    std::vector<std::vector<Index>> earlier(n);
-    parallel_for(0, n, [&](std::size_t i) {
-        thread_local std::vector<Neighbor> nb;
-        tree.radius_search_squared(pts[i], dist * dist, nb);
-        for (const Neighbor& q : nb)
-            if (q.index < i) earlier[i].push_back(q.index);
-    }, 1024);
-    for (std::size_t i = 0; i < n; ++i)
-        for (const Index j : earlier[i])
-            if (keep[j]) {
-                keep[i] = 0;
-                break;
-            }
-    return keep;
 }
 
 }  // namespace detail
@@ -454,54 +440,230 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
         progress.stage("rbf_offsets", 0.0, 0.15);
         BoundingBox box;
         for (const Vec3& p : pts) box.extend(p);
-        const auto keep = detail::rbf_merge(pts, params.merge_distance * box.diagonal());
-        std::vector<Vec3> sp, sn;
-        for (std::size_t i = 0; i < pts.size(); ++i)
-            if (keep[i]) {
-                sp.push_back(pts[i]);
-                const Vec3 n = nrm[i] / nrm[i].cwiseAbs().maxCoeff();  // no underflow in norm()
-                sn.push_back(n.normalized());
+        const std::size_t n0 = pts.size();
+        std::vector<Vec3> sn(n0);
+        parallel_for(0, n0, [&](std::size_t i) {
+            const Vec3 n = nrm[i] / nrm[i].cwiseAbs().maxCoeff();  // no underflow in norm()
+            sn[i] = n.normalized();
+        }, 4096);
+        std::vector<Vec3>().swap(nrm);
+        // Exact copies first, by sorting (a cluster of m copies would otherwise cost m²
+        // in the kd-tree, whose k-nearest query collects every tie): a later copy is
+        // dropped whatever merge_distance, as the merge below would drop it.
+        std::size_t removed = 0;
+        {
+            std::vector<std::tuple<Scalar, Scalar, Scalar, std::uint32_t>> order(n0);
+            parallel_for(0, n0, [&](std::size_t i) {
+                order[i] = {pts[i].x(), pts[i].y(), pts[i].z(), static_cast<std::uint32_t>(i)};
+            }, 4096);
+            detail::sort_maybe_parallel(order);
+            std::vector<std::uint8_t> copy(n0, 0);
+            for (std::size_t k = 1; k < n0; ++k)
+                if (std::get<0>(order[k]) == std::get<0>(order[k - 1]) && std::get<1>(order[k]) == std::get<1>(order[k - 1]) &&
+                    std::get<2>(order[k]) == std::get<2>(order[k - 1])) {
+                    copy[std::get<3>(order[k])] = 1;
+                    ++removed;
+                }
+            if (removed > 0) {
+                std::size_t m = 0;
+                for (std::size_t i = 0; i < n0; ++i)
+                    if (!copy[i]) {
+                        pts[m] = pts[i];
+                        sn[m] = sn[i];
+                        ++m;
+                    }
+                pts.resize(m);
+                sn.resize(m);
             }
-        res.stats.merged_points = pts.size() - sp.size();
-        progress.check();
-        const std::size_t ns = sp.size();
-        data->surface = std::make_shared<const KdTree>(sp);
-        const KdTree& tree = *data->surface;
-        // Per point: d for the + and - offsets (0: dropped) and whether it was shrunk.
-        std::vector<std::array<Scalar, 2>> off(ns);
-        std::vector<std::array<std::uint8_t, 2>> shrunk(ns);
-        std::vector<Scalar> spacing_of(ns);
-        parallel_for(0, ns, [&](std::size_t i) {
-            thread_local std::vector<Neighbor> nb;
-            tree.knn(sp[i], 7, nb);
+            progress.check();
+        }
+        const std::size_t n1 = pts.size();
+        const Scalar merge_dist = params.merge_distance * box.diagonal();
+        const Scalar merge2 = merge_dist * merge_dist;
+        // Phase A, one kd-tree and one query of the 7 nearest per point: the spacing
+        // (the 6 nearest others) and whether a point has a (near-)duplicate. The ids
+        // are kept to know, after a merge, whose 7 nearest held a removed point.
+        constexpr std::size_t K = 7;
+        auto surface = std::make_shared<KdTree>(KdTree::adopt(std::move(pts)));
+        std::vector<Scalar> spacing_of(n1);
+        std::vector<std::uint8_t> suspect(n1);
+        auto near_point = [&](const KdTree& t, std::size_t i, std::vector<Neighbor>& nb, std::uint32_t* ids) {
+            t.knn(t.point(i), K, nb);
             Scalar sum = 0;
             std::size_t cnt = 0;
-            for (const Neighbor& q : nb)
-                if (q.index != i) {
-                    sum += std::sqrt(q.squared_distance);
+            bool dup = false;
+            for (std::size_t k = 0; k < nb.size(); ++k) {
+                if (ids) ids[k] = static_cast<std::uint32_t>(nb[k].index);
+                if (nb[k].index == i) continue;
+                if (nb[k].squared_distance <= merge2) dup = true;
+                if (cnt < 6) {
+                    sum += std::sqrt(nb[k].squared_distance);
                     ++cnt;
                 }
-            const Scalar spacing = cnt > 0 ? sum / static_cast<Scalar>(cnt) : Scalar(1);
-            spacing_of[i] = spacing;
-            for (int s = 0; s < 2; ++s) {
-                Scalar d = params.offset_scale * spacing;
-                const Scalar sign = s == 0 ? Scalar(1) : Scalar(-1);
-                off[i][s] = 0;
-                shrunk[i][s] = 0;
-                for (int it = 0; it < 9; ++it) {
-                    const Vec3 q = sp[i] + sign * d * sn[i];
-                    const Neighbor nn = tree.nearest(q);
-                    const Scalar own = (q - sp[i]).squaredNorm();
-                    if (nn.index == i || !(nn.squared_distance < own)) {
-                        off[i][s] = d;
-                        break;
-                    }
-                    shrunk[i][s] = 1;
-                    d /= 2;
+            }
+            if (ids)
+                for (std::size_t k = nb.size(); k < K; ++k) ids[k] = static_cast<std::uint32_t>(i);
+            spacing_of[i] = cnt > 0 ? sum / static_cast<Scalar>(cnt) : Scalar(1);
+            return dup;
+        };
+        // The queries run in Morton order of the points (each result stored at its
+        // point): neighbouring queries walk the same branches of the tree, which at 1M
+        // points in scan or sampling order saves most cache misses. Same results.
+        auto morton_order = [&](const std::vector<Vec3>& P) {
+            std::vector<std::pair<std::uint64_t, std::uint32_t>> key(P.size());
+            const Scalar scale = Scalar((1u << 21) - 1) / std::max(box.extent().maxCoeff(), Scalar(1e-300));
+            parallel_for(0, P.size(), [&](std::size_t i) {
+                std::array<std::uint32_t, 3> g{};
+                for (int a = 0; a < 3; ++a)
+                    g[static_cast<std::size_t>(a)] = static_cast<std::uint32_t>(
+                        std::clamp<Scalar>((P[i][a] - box.min[a]) * scale, 0, Scalar((1u << 21) - 1)));
+                key[i] = {morton_encode(g[0], g[1], g[2]), static_cast<std::uint32_t>(i)};
+            }, 4096);
+            detail::sort_maybe_parallel(key);
+            std::vector<std::uint32_t> order(P.size());
+            for (std::size_t i = 0; i < P.size(); ++i) order[i] = key[i].second;
+            return order;
+        };
+        std::vector<std::uint32_t> visit = morton_order(surface->points());
+        std::vector<std::uint32_t> knn_ids(n1 * K);
+        constexpr std::size_t point_block = 1 << 16;
+        for (std::size_t b0 = 0; b0 < n1; b0 += point_block) {
+            const std::size_t b1 = std::min(n1, b0 + point_block);
+            parallel_for(b0, b1, [&](std::size_t t) {
+                thread_local std::vector<Neighbor> nb;
+                const std::size_t i = visit[t];
+                suspect[i] = near_point(*surface, i, nb, knn_ids.data() + i * K) ? 1 : 0;
+            }, 256);
+            progress.check();
+            progress.update(0.4 * static_cast<double>(b1) / static_cast<double>(n1));
+        }
+        // Merge: keep point i unless an earlier kept point lies within merge_dist (exact
+        // duplicates always). Only points with such a neighbour ("suspects") take part;
+        // closeness is symmetric, so they are closed under it. Greedy in index order
+        // over a hash grid of the kept suspects (cells of side merge_dist: a suspect's
+        // rivals lie in the 27 cells around it, and a cell holds at most a few kept
+        // points), so a cluster of m copies costs O(m), not O(m²).
+        std::vector<std::uint8_t> keep(n1, 1);
+        std::size_t near_removed = 0;
+        {
+            const Scalar h = merge_dist > 0 ? merge_dist * Scalar(1.001) : Scalar(0);
+            using Key = std::array<std::int64_t, 3>;
+            struct KeyHash {
+                std::size_t operator()(const Key& k) const {
+                    std::uint64_t x = static_cast<std::uint64_t>(k[0]) * 0x9E3779B97F4A7C15ULL;
+                    x ^= static_cast<std::uint64_t>(k[1]) * 0xC2B2AE3D27D4EB4FULL + (x >> 29);
+                    x ^= static_cast<std::uint64_t>(k[2]) * 0x165667B19E3779F9ULL + (x >> 31);
+                    return static_cast<std::size_t>(x ^ (x >> 32));
+                }
+            };
+            auto key_of = [&](const Vec3& p) {
+                Key k{};
+                for (int a = 0; a < 3; ++a) {
+                    if (h > 0) k[a] = static_cast<std::int64_t>(std::floor((p[a] - box.min[a]) / h));
+                    else std::memcpy(&k[a], &p[a], sizeof(Scalar));  // exact duplicates share the key
+                }
+                return k;
+            };
+            std::unordered_map<Key, std::vector<std::uint32_t>, KeyHash> grid;
+            const int r = h > 0 ? 1 : 0;
+            std::size_t seen = 0;
+            for (std::size_t i = 0; i < n1; ++i) {
+                if (!suspect[i]) continue;
+                if (++seen % 65536 == 0) progress.check();
+                const Vec3& p = surface->point(i);
+                const Key k = key_of(p);
+                bool near = false;
+                for (int dz = -r; dz <= r && !near; ++dz)
+                    for (int dy = -r; dy <= r && !near; ++dy)
+                        for (int dx = -r; dx <= r && !near; ++dx) {
+                            const auto it = grid.find(Key{k[0] + dx, k[1] + dy, k[2] + dz});
+                            if (it == grid.end()) continue;
+                            for (const std::uint32_t j : it->second)
+                                if ((p - surface->point(j)).squaredNorm() <= merge2) {
+                                    near = true;
+                                    break;
+                                }
+                        }
+                if (near) {
+                    keep[i] = 0;
+                    ++near_removed;
+                } else {
+                    grid[k].push_back(static_cast<std::uint32_t>(i));
                 }
             }
-        }, 512);
-        progress.check();
+        }
+        removed += near_removed;
+        res.stats.merged_points = removed;
+        if (n0 - removed < 4)
+            throw invalid_input("kintsugi::RBFOctreeField::build: needs at least 4 distinct points, got " +
+                                std::to_string(n0 - removed) +
+                                " after merging the (near-)duplicates within merge_distance; add points or lower "
+                                "merge_distance");
+        if (near_removed > 0) {
+            // The kept points, in order, in a new tree; a spacing stands unless the
+            // point's 7 nearest held a removed point.
+            std::vector<Vec3> kp, kn;
+            std::vector<std::uint8_t> redo;
+            kp.reserve(n1 - near_removed);
+            std::size_t m = 0;
+            for (std::size_t i = 0; i < n1; ++i) {
+                if (!keep[i]) continue;
+                bool again = false;
+                for (std::size_t k = 0; k < K && !again; ++k) again = !keep[knn_ids[i * K + k]];
+                kp.push_back(surface->point(i));
+                kn.push_back(sn[i]);
+                spacing_of[m] = spacing_of[i];
+                redo.push_back(again ? 1 : 0);
+                ++m;
+            }
+            spacing_of.resize(m);
+            sn = std::move(kn);
+            surface = std::make_shared<KdTree>(KdTree::adopt(std::move(kp)));
+            visit = morton_order(surface->points());
+            progress.check();
+            parallel_for(0, m, [&](std::size_t i) {
+                if (!redo[i]) return;
+                thread_local std::vector<Neighbor> nb;
+                (void)near_point(*surface, i, nb, nullptr);
+            }, 256);
+        }
+        std::vector<std::uint32_t>().swap(knn_ids);
+        data->surface = surface;
+        const KdTree& tree = *data->surface;
+        const std::vector<Vec3>& sp = tree.points();
+        const std::size_t ns = sp.size();
+        // Phase B, Carr's test of both offsets: d is halved while another point is
+        // strictly nearer to p_i ± d n_i than p_i is (one nearest-point query per try:
+        // cheaper, measured, than one radius query of 2d around p_i).
+        std::vector<std::array<Scalar, 2>> off(ns);           // d of the + and - offsets (0: dropped)
+        std::vector<std::array<std::uint8_t, 2>> shrunk(ns);  // whether d was halved
+        for (std::size_t b0 = 0; b0 < ns; b0 += point_block) {
+            const std::size_t b1 = std::min(ns, b0 + point_block);
+            parallel_for(b0, b1, [&](std::size_t t) {
+                const std::size_t i = visit[t];
+                const Vec3& p = sp[i];
+                for (int s = 0; s < 2; ++s) {
+                    Scalar d = params.offset_scale * spacing_of[i];
+                    const Scalar sign = s == 0 ? Scalar(1) : Scalar(-1);
+                    off[i][s] = 0;
+                    shrunk[i][s] = 0;
+                    for (int it = 0; it < 9; ++it) {
+                        const Vec3 q = p + sign * d * sn[i];
+                        const Neighbor nn = tree.nearest(q);
+                        const Scalar own = (q - p).squaredNorm();
+                        if (nn.index == i || !(nn.squared_distance < own)) {
+                            off[i][s] = d;
+                            break;
+                        }
+                        shrunk[i][s] = 1;
+                        d /= 2;
+                    }
+                }
+            }, 256);
+            progress.check();
+            progress.update(0.4 + 0.6 * static_cast<double>(b1) / static_cast<double>(ns));
+        }
+        std::vector<std::uint32_t>().swap(visit);
         // Centres: point i, then its + and - offsets, in point order.
         std::vector<Vec3>& C = data->centres;
         std::vector<Scalar> value;
@@ -541,11 +703,12 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
         data->root_min = (lo + hi) / 2 - span / 2;
         const Scalar alpha = params.overlap, beta = params.activity, gamma = std::max(alpha, beta);
         // Level-by-level subdivision; a node's list holds the centres in its γ-box
-        // (γ = max(α, β)), a child's list is a subset of its parent's.
+        // (γ = max(α, β)), a child's list is a subset of its parent's. Each level's
+        // splitting nodes are cut into chunks of their lists, processed in parallel and
+        // concatenated in order: the same tree whatever the thread count.
         auto& nodes = data->nodes;
         const std::size_t n_roots =
             static_cast<std::size_t>(data->root_count[0]) * data->root_count[1] * data->root_count[2];
-        std::vector<std::vector<std::uint32_t>> lists(n_roots);
         for (int k = 0; k < data->root_count[2]; ++k)
             for (int j = 0; j < data->root_count[1]; ++j)
                 for (int i = 0; i < data->root_count[0]; ++i)
@@ -555,52 +718,84 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
             const Vec3 c = n.min + Vec3::Constant(n.side / 2);
             return std::abs(p.x() - c.x()) <= h && std::abs(p.y() - c.y()) <= h && std::abs(p.z() - c.z()) <= h;
         };
-        {
+        std::vector<std::vector<std::uint32_t>> lists(n_roots);
+        std::vector<std::size_t> alpha_count(n_roots, 0);  // centres in each node's α-box
+        for (std::size_t c = 0; c < C.size(); ++c) {
             // Roots: bin every centre into the roots whose γ-boxes hold it.
-            std::vector<std::vector<std::uint32_t>> per_root(n_roots);
-            for (std::size_t c = 0; c < C.size(); ++c) {
-                std::array<int, 3> r{};
-                (void)data->root_of(C[c], r);
-                for (int k = std::max(0, r[2] - 1); k <= std::min(data->root_count[2] - 1, r[2] + 1); ++k)
-                    for (int j = std::max(0, r[1] - 1); j <= std::min(data->root_count[1] - 1, r[1] + 1); ++j)
-                        for (int i = std::max(0, r[0] - 1); i <= std::min(data->root_count[0] - 1, r[0] + 1); ++i) {
-                            const std::size_t id = data->root_index(i, j, k);
-                            if (in_factor_box(nodes[id], C[c], gamma)) per_root[id].push_back(static_cast<std::uint32_t>(c));
-                        }
-            }
-            lists = std::move(per_root);
+            std::array<int, 3> r{};
+            (void)data->root_of(C[c], r);
+            for (int k = std::max(0, r[2] - 1); k <= std::min(data->root_count[2] - 1, r[2] + 1); ++k)
+                for (int j = std::max(0, r[1] - 1); j <= std::min(data->root_count[1] - 1, r[1] + 1); ++j)
+                    for (int i = std::max(0, r[0] - 1); i <= std::min(data->root_count[0] - 1, r[0] + 1); ++i) {
+                        const std::size_t id = data->root_index(i, j, k);
+                        if (!in_factor_box(nodes[id], C[c], gamma)) continue;
+                        lists[id].push_back(static_cast<std::uint32_t>(c));
+                        if (in_factor_box(nodes[id], C[c], alpha)) ++alpha_count[id];
+                    }
         }
         constexpr int max_depth = 20;  // 2^-20 of the root: far below any merged spacing
         std::vector<std::size_t> level(n_roots);
         for (std::size_t i = 0; i < n_roots; ++i) level[i] = i;
         // Final lists of the leaves, by node.
         std::vector<std::vector<std::uint32_t>> node_list(n_roots);
+        struct Chunk {
+            std::size_t q, begin, end;
+        };
+        struct ChunkOut {
+            std::array<std::vector<std::uint32_t>, 8> kid;  // γ-box lists of the 8 children
+            std::array<std::size_t, 8> alpha{};             // their α-box counts
+        };
+        constexpr std::size_t chunk_size = 1 << 15;
         for (int depth = 0; !level.empty(); ++depth) {
             progress.check();
             res.stats.depth = depth;
-            // Which nodes of this level split, in parallel; children appended in order.
-            std::vector<std::array<std::vector<std::uint32_t>, 8>> kids(level.size());
-            std::vector<std::uint8_t> split(level.size(), 0);
-            parallel_for(0, level.size(), [&](std::size_t q) {
-                const auto& node = nodes[level[q]];
-                const auto& list = lists[q];
-                std::size_t in_alpha = 0;
-                for (const auto c : list) in_alpha += in_factor_box(node, C[c], alpha) ? 1 : 0;
-                if (in_alpha <= params.n_max || depth >= max_depth) return;
-                split[q] = 1;
+            std::vector<Chunk> chunks;
+            std::vector<std::size_t> first_chunk(level.size() + 1, 0);
+            for (std::size_t q = 0; q < level.size(); ++q) {
+                first_chunk[q] = chunks.size();
+                if (alpha_count[q] <= params.n_max || depth >= max_depth) continue;
+                for (std::size_t b = 0; b < lists[q].size(); b += chunk_size)
+                    chunks.push_back({q, b, std::min(lists[q].size(), b + chunk_size)});
+                if (lists[q].empty()) chunks.push_back({q, 0, 0});
+            }
+            first_chunk[level.size()] = chunks.size();
+            std::vector<ChunkOut> outs(chunks.size());
+            parallel_for(0, chunks.size(), [&](std::size_t t) {
+                const Chunk& ch = chunks[t];
+                const auto& node = nodes[level[ch.q]];
+                const auto& list = lists[ch.q];
+                // Per axis, the children's centres (low, high) and half-widths, computed
+                // as in_factor_box computes them for the child nodes.
                 const Scalar hs = node.side / 2;
-                for (std::size_t o = 0; o < 8; ++o) {
-                    const detail::RBFOctreeData::Node child{
-                        node.min + hs * Vec3(o & 1 ? 1 : 0, o & 2 ? 1 : 0, o & 4 ? 1 : 0), hs, -1, -1};
-                    for (const auto c : list)
-                        if (in_factor_box(child, C[c], gamma)) kids[q][o].push_back(c);
+                const Scalar hg = gamma * hs / 2, ha = alpha * hs / 2;
+                Scalar clo[3], chi[3];
+                for (int k = 0; k < 3; ++k) {
+                    clo[k] = node.min[k] + hs / 2;
+                    chi[k] = (node.min[k] + hs) + hs / 2;
+                }
+                ChunkOut& out = outs[t];
+                for (std::size_t e = ch.begin; e < ch.end; ++e) {
+                    const std::uint32_t c = list[e];
+                    const Vec3& p = C[c];
+                    unsigned g[3], a[3];  // bit 0: the low child's box holds p, bit 1: the high one's
+                    for (int k = 0; k < 3; ++k) {
+                        const Scalar dl = std::abs(p[k] - clo[k]), dh = std::abs(p[k] - chi[k]);
+                        g[k] = (dl <= hg ? 1u : 0u) | (dh <= hg ? 2u : 0u);
+                        a[k] = (dl <= ha ? 1u : 0u) | (dh <= ha ? 2u : 0u);
+                    }
+                    for (unsigned o = 0; o < 8; ++o) {
+                        const unsigned bx = 1u << (o & 1), by = 1u << ((o >> 1) & 1), bz = 1u << ((o >> 2) & 1);
+                        if (!((g[0] & bx) && (g[1] & by) && (g[2] & bz))) continue;
+                        out.kid[o].push_back(c);
+                        if ((a[0] & bx) && (a[1] & by) && (a[2] & bz)) ++out.alpha[o];
+                    }
                 }
             }, 1);
-            std::vector<std::size_t> next;
+            std::vector<std::size_t> next, next_alpha;
             std::vector<std::vector<std::uint32_t>> next_lists;
             for (std::size_t q = 0; q < level.size(); ++q) {
                 const std::size_t id = level[q];
-                if (!split[q]) {
+                if (first_chunk[q] == first_chunk[q + 1]) {  // a leaf
                     if (node_list.size() < nodes.size()) node_list.resize(nodes.size());
                     node_list[id] = std::move(lists[q]);
                     continue;
@@ -612,30 +807,51 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
                 for (std::size_t o = 0; o < 8; ++o) {
                     nodes.push_back({mn + hs * Vec3(o & 1 ? 1 : 0, o & 2 ? 1 : 0, o & 4 ? 1 : 0), hs, -1, -1});
                     next.push_back(static_cast<std::size_t>(first) + o);
-                    next_lists.push_back(std::move(kids[q][o]));
+                    std::vector<std::uint32_t> kid = std::move(outs[first_chunk[q]].kid[o]);
+                    std::size_t na = outs[first_chunk[q]].alpha[o];
+                    for (std::size_t t = first_chunk[q] + 1; t < first_chunk[q + 1]; ++t) {
+                        kid.insert(kid.end(), outs[t].kid[o].begin(), outs[t].kid[o].end());
+                        std::vector<std::uint32_t>().swap(outs[t].kid[o]);
+                        na += outs[t].alpha[o];
+                    }
+                    next_lists.push_back(std::move(kid));
+                    next_alpha.push_back(na);
                 }
                 std::vector<std::uint32_t>().swap(lists[q]);
             }
             level = std::move(next);
             lists = std::move(next_lists);
+            alpha_count = std::move(next_alpha);
         }
         node_list.resize(nodes.size());
-        // Leaves in node order; liveness from the β-box; the α-box centres for the system.
-        std::vector<std::vector<std::uint32_t>> leaf_centres;
+        // Leaves in node order; liveness from the β-box; the α-box centres for the system
+        // (the list itself when γ = α).
+        std::vector<std::size_t> leaf_node;
         for (std::size_t id = 0; id < nodes.size(); ++id) {
             if (nodes[id].child >= 0) continue;
-            nodes[id].leaf = static_cast<std::int64_t>(data->leaves.size());
-            detail::RBFOctreeData::Leaf leaf;
-            leaf.node = id;
-            std::vector<std::uint32_t> mine;
-            for (const auto c : node_list[id]) {
-                if (on_surface[c] && in_factor_box(nodes[id], C[c], beta)) leaf.live = true;
-                if (in_factor_box(nodes[id], C[c], alpha)) mine.push_back(c);
-            }
-            std::vector<std::uint32_t>().swap(node_list[id]);
-            data->leaves.push_back(leaf);
-            leaf_centres.push_back(std::move(mine));
+            nodes[id].leaf = static_cast<std::int64_t>(leaf_node.size());
+            leaf_node.push_back(id);
         }
+        data->leaves.resize(leaf_node.size());
+        std::vector<std::vector<std::uint32_t>> leaf_centres(leaf_node.size());
+        parallel_for(0, leaf_node.size(), [&](std::size_t l) {
+            const std::size_t id = leaf_node[l];
+            auto& leaf = data->leaves[l];
+            leaf.node = id;
+            auto& list = node_list[id];
+            for (const auto c : list)
+                if (on_surface[c] && in_factor_box(nodes[id], C[c], beta)) {
+                    leaf.live = true;
+                    break;
+                }
+            if (gamma == alpha) {
+                leaf_centres[l] = std::move(list);
+            } else {
+                for (const auto c : list)
+                    if (in_factor_box(nodes[id], C[c], alpha)) leaf_centres[l].push_back(c);
+                std::vector<std::uint32_t>().swap(list);
+            }
+        }, 16);
         res.stats.cells = data->leaves.size();
         // Beyond the paper: a cell the surface may cross between samples is live too
         // (its nearest point closer to its centre than β x the half diagonal plus
@@ -654,11 +870,15 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
 
         // ---------------------------------------------------------- 3) solves
         progress.stage("rbf_solve", 0.25, 1.0);
-        const KdTree centre_tree(C);
         const std::size_t nl = data->leaves.size();
+        constexpr std::size_t min_centres = 20;  // a well-posed r³ + linear fit
+        // The centres' kd-tree only when some live cell needs padding.
+        bool any_padded = false;
+        for (std::size_t l = 0; l < nl && !any_padded; ++l)
+            any_padded = data->leaves[l].live && leaf_centres[l].size() < min_centres;
+        const KdTree centre_tree = any_padded ? KdTree(C) : KdTree();
         std::vector<std::vector<Scalar>> leaf_w(nl);
         std::vector<std::uint8_t> bad(nl, 0), padded(nl, 0);
-        constexpr std::size_t min_centres = 20;  // a well-posed r³ + linear fit
         const std::size_t block = 256;
         for (std::size_t b0 = 0; b0 < nl; b0 += block) {
             const std::size_t b1 = std::min(nl, b0 + block);
