@@ -238,8 +238,10 @@ TEST_CASE("RBFOctreeField: a cluster of copies is merged in linear time, also at
         REQUIRE(res.status == ks::Status::ok);
         // at 0 only the exact copies go
         CHECK(res.stats.merged_points == (md > 0 ? 22000u : 20000u));
-        CHECK(res.stats.ill_conditioned_cells == (md > 0 ? 0u : res.stats.ill_conditioned_cells));
-        if (md > 0) CHECK(res.stats.max_points_per_cell <= 60 + 20);
+        if (md > 0) {
+            CHECK(res.stats.ill_conditioned_cells == 0);
+            CHECK(res.stats.max_points_per_cell <= 60 + 20);
+        }
         CHECK(std::abs(res.field(p0)) <= 1e-6 * diag);
         for (std::size_t i = 0; i < 3000; i += 7) CHECK(std::abs(res.field(pts[i])) <= 1e-6 * diag);
         CHECK(std::isfinite(res.field(p1)));
