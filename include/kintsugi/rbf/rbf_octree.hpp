@@ -311,10 +311,11 @@ public:
     /// squares, counted); 4) evaluation blended (default) or per cell.
     /// @tparam P an OrientedPointSet (read once); normals outward, any non-zero length.
     /// @param params RBFOctreeParams (resolution unused here).
-    /// @throws invalid_input for fewer than 4 points, missing normals, a NaN/Inf
-    ///         coordinate or normal, a zero normal, n_max < 10, overlap or activity < 1,
-    ///         root_size outside (0, 1], offset_scale <= 0, smoothing or merge_distance
-    ///         < 0; inputs untouched.
+    /// @throws invalid_input for fewer than 4 distinct points (after the merge),
+    ///         missing normals, a NaN/Inf coordinate or normal, a zero normal,
+    ///         n_max < 10, overlap or activity outside [1, 3], root_size outside
+    ///         [1/64, 1], offset_scale <= 0, smoothing or merge_distance < 0; inputs
+    ///         untouched.
     /// @return field (empty unless ok), Status::cancelled when stopped through
     ///         params.control, counts, timings "rbf_offsets", "rbf_octree", "rbf_solve".
     ///         Bit-identical whatever the number of threads.
