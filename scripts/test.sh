@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Builds kintsugi and runs the whole test suite twice: an optimised build
-# (tests, examples, the CLI and the benchmarks, which must compile), then a
-# build of the test programs under AddressSanitizer + UndefinedBehaviorSanitizer.
-# In between, with clang: every public header compiled alone and a short fuzzing run
-# of each file reader (tests/fuzz/).
-# Usage: scripts/test.sh [--no-sanitize]
+# Builds kintsugi and runs every test: an optimised build of the command-line tool, the
+# examples and the benchmarks (which must compile) with the tests that use them (CLI
+# behaviour, examples, the installed package); then the doctest programs, built once,
+# under AddressSanitizer + UndefinedBehaviorSanitizer with assertions on. In between,
+# with clang: every public header compiled alone and a short fuzzing run of each file
+# reader (tests/fuzz/).
+# Usage: scripts/test.sh [--no-sanitize]   (the doctest programs then run in the optimised build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -18,6 +19,8 @@ if command -v ccache >/dev/null; then
   export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/kintsugi-ccache}"
   # Hits across checkouts in different directories (CI clones elsewhere).
   export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=true
+  # The test programs' precompiled header: ccache may reuse results compiled with it.
+  export CCACHE_SLOPPINESS="${CCACHE_SLOPPINESS:-pch_defines,time_macros,include_file_mtime,include_file_ctime}"
   ccache --max-size=5G >/dev/null 2>&1 || true
 fi
 
@@ -37,7 +40,10 @@ run_suite() {
   echo "== tested $dir in $((SECONDS - t0)) s" >&2
 }
 
-run_suite build/release -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_BENCH=ON
+# Release: the doctest programs too only when there is no sanitizer build to run them.
+unit_in_release=OFF
+[ $sanitize -eq 0 ] && unit_in_release=ON
+run_suite build/release -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_BENCH=ON -DKINTSUGI_UNIT_TESTS=$unit_in_release
 
 # clang: every public header compiled alone (-Wall -Wextra -Wpedantic -Werror), then each
 # reader's libFuzzer harness for KINTSUGI_FUZZ_SECONDS (default 25) from the seed corpus;
@@ -61,9 +67,10 @@ fi
 if [ $sanitize -eq 1 ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1
   export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-  # The library under the sanitizers through the test binaries; the command-line tool,
-  # the examples and the packaging test (an install and a second project's build) run
-  # in the optimised suite only, which keeps this second build to the test programs.
+  # The library under the sanitizers through the doctest programs; the command-line tool,
+  # the examples and the packaging test (an install and a second project's build) ran
+  # in the optimised suite, which keeps this build to the test programs. -g1 (line
+  # tables) is what the sanitizers' reports need and compiles faster than -g.
   run_suite build/asan --ctest "-LE consumer" -DCMAKE_BUILD_TYPE=Debug -DKINTSUGI_SANITIZE=address,undefined \
-    -DKINTSUGI_BUILD_EXAMPLES=OFF -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g"
+    -DKINTSUGI_BUILD_EXAMPLES=OFF -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1"
 fi
