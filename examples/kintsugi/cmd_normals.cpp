@@ -3,7 +3,7 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi normals IN OUT [--k N] [--method pca|jet] [--no-orient]`: estimate
 // (and consistently orient) point normals.
-#include "common.hpp"
+#include "reconstruct_cli.hpp"
 
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/io/write.hpp>
@@ -81,5 +81,24 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
 }
 
 }  // namespace
+
+namespace kcli::reconstruct {
+
+bool estimate_missing_normals(Context& ctx, kintsugi::PointCloud& cloud, const std::string& input) {
+    if (kintsugi::has_normals(cloud)) return false;
+    kintsugi::NormalParams np;  // the library's defaults
+    ctx.notice(input + " has no normals; estimating and orienting them (" +
+               (np.method == kintsugi::NormalMethod::jet ? "jet" : "PCA") + ", k = " + std::to_string(np.k) +
+               ", outward)");
+    np.control = ctx.control("normals");
+    ctx.doing("estimating the normals of " + grouped(cloud.points.size()) + " points of " + input);
+    const auto nr = kintsugi::estimate_normals(cloud, np);
+    ctx.end_progress();
+    if (nr.status == kintsugi::Status::cancelled) throw interrupted();
+    ctx.add_timings(nr.timings, "normals_");
+    return true;
+}
+
+}  // namespace kcli::reconstruct
 
 KINTSUGI_REGISTER_COMMAND(normals, "Estimate and consistently orient point normals", setup)

@@ -6,13 +6,11 @@
 // outward-oriented manifold surface from (possibly outlier-ridden) points.
 // `--method rbf [--n-max 250] [--overlap 1.35] [--activity 1.05] [--smoothing L]
 // [--resolution N] [--no-blend]`: the octree triharmonic RBF surface (clean points).
-#include "common.hpp"
+#include "reconstruct_cli.hpp"
 
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/io/write.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
-#include <kintsugi/normals/estimate_normals.hpp>
-#include <kintsugi/rbf/rbf_octree.hpp>
 #include <kintsugi/reconstruct/pu_graphcut.hpp>
 
 #include <cmath>
@@ -30,11 +28,10 @@ struct ReconstructOptions {
     kintsugi::PUGraphcutParams params;  // the library's defaults
     std::string labeling = params.labeling == kintsugi::Labeling::sign ? "sign" : "graphcut";
     bool inward = params.normals == kintsugi::NormalConvention::inward;
-    kintsugi::RBFOctreeParams rbf;  // the library's defaults
+    std::shared_ptr<kcli::reconstruct::RbfOptions> rbf;  // cmd_reconstruct_rbf.cpp
     /// --smoothing: Taubin iterations for pu-graphcut, λ for rbf (each method's default when not given)
     double smoothing = static_cast<double>(params.smoothing_iterations);
     CLI::Option* smoothing_option = nullptr;
-    bool no_blend = !rbf.blend;
     std::vector<CLI::Option*> pu_only, rbf_only;  ///< refused with the other method
 };
 
@@ -44,70 +41,23 @@ std::string real_text(double x) {
     return buf;
 }
 
-/// The surface's topology, then the mesh written to the output.
-kintsugi::TopologyReport write_surface(kcli::Context& ctx, const ReconstructOptions& o,
-                                       const kintsugi::IndexedMesh& m) {
+}  // namespace
+
+namespace kcli::reconstruct {
+
+kintsugi::TopologyReport write_surface(Context& ctx, const std::string& output, const kintsugi::IndexedMesh& m) {
     const kintsugi::TopologyReport rep = kintsugi::topology_report(m);
-    kcli::Stopwatch sw;
+    Stopwatch sw;
     ctx.check_interrupted();
-    ctx.doing("writing " + o.output);
-    kintsugi::write_mesh(o.output, m, ctx.write_options());
+    ctx.doing("writing " + output);
+    kintsugi::write_mesh(output, m, ctx.write_options());
     ctx.add_timing("write", sw.seconds());
     return rep;
 }
 
-/// --method rbf: the fit, its polygonisation, the output, the JSON and the summary line.
-void run_rbf(const ReconstructOptions& o, kcli::Context& ctx, kintsugi::PointCloud& cloud, bool estimated) {
-    kintsugi::RBFOctreeParams p = o.rbf;
-    if (o.smoothing_option->count() > 0) p.smoothing = o.smoothing;
-    p.blend = !o.no_blend;
-    p.control = ctx.control("reconstruct");
-    if (o.inward)
-        for (kintsugi::Vec3& n : cloud.normals) n = -n;
-    ctx.doing("reconstructing an RBF surface from the " + kcli::grouped(cloud.points.size()) + " points of " +
-              o.input + " (--n-max " + std::to_string(p.n_max) + ", --resolution " + std::to_string(p.resolution) +
-              ")");
-    kintsugi::RBFReconstructResult r = kintsugi::reconstruct_rbf_octree(cloud, p);
-    ctx.end_progress();
-    if (r.status == kintsugi::Status::cancelled) throw kcli::interrupted();
-    ctx.add_timings(r.timings);
-    const kintsugi::TopologyReport rep = write_surface(ctx, o, r.mesh);
-    const auto& st = r.stats;
-    auto& j = ctx.json();
-    const std::pair<const char*, kcli::Json> top[] = {
-        {"command", "reconstruct"}, {"input", o.input}, {"output", o.output}};
-    for (const auto& [key, value] : top) j[key] = value;
-    const std::pair<const char*, kcli::Json> parameters[] = {
-        {"method", o.method},        {"n_max", p.n_max},           {"overlap", p.overlap},
-        {"activity", p.activity},    {"smoothing", p.smoothing},   {"resolution", p.resolution},
-        {"blend", p.blend},          {"inward_normals", o.inward}};
-    for (const auto& [key, value] : parameters) j["parameters"][key] = value;
-    const std::pair<const char*, kcli::Json> counts[] = {
-        {"normals_estimated", estimated},
-        {"points", st.points},
-        {"merged_points", st.merged_points},
-        {"offset_points", st.offset_points},
-        {"cells", st.cells},
-        {"live_cells", st.live_cells},
-        {"dead_cells", st.dead_cells},
-        {"max_points_per_cell", st.max_points_per_cell},
-        {"mean_points_per_cell", st.mean_points_per_cell},
-        {"ill_conditioned_cells", st.ill_conditioned_cells},
-        {"field_evaluations", r.isosurface.field_evaluations},
-        {"vertices", rep.vertices},
-        {"faces", rep.faces},
-        {"components", rep.components},
-        {"genus", rep.genus},
-        {"closed", rep.closed},
-        {"manifold", rep.manifold}};
-    for (const auto& [key, value] : counts) j[key] = value;
-    ctx.info("reconstructed " + std::to_string(st.points) + " points (" + std::to_string(st.live_cells) +
-             " live cells of " + std::to_string(st.cells) + ", at most " + std::to_string(st.max_points_per_cell) +
-             " centres each, " + std::to_string(st.ill_conditioned_cells) + " ill-conditioned) -> " +
-             std::to_string(rep.vertices) + " vertices, " + std::to_string(rep.faces) + " faces, " +
-             std::to_string(rep.components) + " component(s), genus " + std::to_string(rep.genus) +
-             (rep.closed && rep.manifold ? ", closed manifold" : "") + " -> " + o.output);
-}
+}  // namespace kcli::reconstruct
+
+namespace {
 
 kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     auto o = std::make_shared<ReconstructOptions>();
@@ -132,7 +82,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     o->smoothing_option =
         cmd.add_option("--smoothing", o->smoothing,
                        "pu-graphcut: selective Taubin iterations (0 = none); rbf: Carr's smoothing lambda (default " +
-                           real_text(o->rbf.smoothing) + ", 0 interpolates)")
+                           real_text(kcli::reconstruct::rbf_default_smoothing()) + ", 0 interpolates)")
             ->capture_default_str()
             ->check(kcli::real(0.0, 1e6));
     cmd.add_option("--labeling", o->labeling, "graphcut, or sign (the PU field's sign, for comparison)")
@@ -141,20 +91,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_flag("--inward-normals", o->inward, "Input normals point into the object (the paper's convention)");
     for (const char* name : {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--labeling"})
         o->pu_only.push_back(cmd.get_option(name));
-    auto& r = o->rbf;
-    const auto rbf_option = [&cmd, &o](const char* name, auto& value, const char* help, const CLI::Validator& check) {
-        o->rbf_only.push_back(
-            cmd.add_option(name, value, std::string("rbf: ") + help)->capture_default_str()->check(check));
-    };
-    rbf_option("--n-max", r.n_max, "a cell splits while more centres are assigned to it (>= 10)",
-               kcli::count(10, 100000));
-    rbf_option("--overlap", r.overlap, "overlap factor alpha of the cells (>= 1; paper 1.3-1.4)",
-               kcli::real(1.0, 4.0));
-    rbf_option("--activity", r.activity, "activity factor beta of dead cells (>= 1; paper 1.05)",
-               kcli::real(1.0, 4.0));
-    rbf_option("--resolution", r.resolution, "polygonisation cubes along the longest side", kcli::count(8, 4096));
-    o->rbf_only.push_back(
-        cmd.add_flag("--no-blend", o->no_blend, "rbf: the paper's single-cell evaluation (seams) instead of the blend"));
+    o->rbf = kcli::reconstruct::add_rbf_options(cmd, o->rbf_only);
     return [o, &ctx] {
         for (const CLI::Option* opt : o->method == "rbf" ? o->pu_only : o->rbf_only)
             if (opt->count() > 0)
@@ -168,23 +105,16 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ctx.doing("reading " + o->input);
         kintsugi::PointCloud cloud = kintsugi::read_point_cloud(o->input, &info);
         ctx.add_timing("read", sw.seconds());
-        bool estimated = false;
-        if (!kintsugi::has_normals(cloud)) {
-            kintsugi::NormalParams np;  // the library's defaults
-            ctx.notice(o->input + " has no normals; estimating and orienting them (" +
-                       (np.method == kintsugi::NormalMethod::jet ? "jet" : "PCA") + ", k = " + std::to_string(np.k) +
-                       ", outward)");
-            np.control = ctx.control("normals");
-            ctx.doing("estimating the normals of " + kcli::grouped(cloud.points.size()) + " points of " + o->input);
-            const auto nr = kintsugi::estimate_normals(cloud, np);
-            ctx.end_progress();
-            if (nr.status == kintsugi::Status::cancelled) throw kcli::interrupted();
-            ctx.add_timings(nr.timings, "normals_");
-            estimated = true;
-        }
+        const bool estimated = kcli::reconstruct::estimate_missing_normals(ctx, cloud, o->input);
 
         if (o->method == "rbf") {
-            run_rbf(*o, ctx, cloud, estimated);
+            kcli::reconstruct::RbfRun run;
+            run.input = o->input;
+            run.output = o->output;
+            run.inward = o->inward;
+            if (o->smoothing_option->count() > 0) run.smoothing = o->smoothing;
+            run.normals_estimated = estimated;
+            kcli::reconstruct::run_rbf(*o->rbf, run, ctx, cloud);
             return;
         }
         kintsugi::PUGraphcutParams p = o->params;
@@ -203,7 +133,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             ctx.notice(std::to_string(r.far_points) + " of the " + std::to_string(r.points) +
                        " points lie apart from the rest in groups too small to be an object; they were left out");
 
-        const kintsugi::TopologyReport rep = write_surface(ctx, *o, r.mesh);
+        const kintsugi::TopologyReport rep = kcli::reconstruct::write_surface(ctx, o->output, r.mesh);
 
         auto& j = ctx.json();
         j["command"] = "reconstruct";
