@@ -510,6 +510,28 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
         }
         // 3. Fair the new vertices.
         progress.stage("fair", 0.7, 0.95);
+        // Each hole's reach: the box of its loop grown by the box's diagonal.
+        std::vector<BoundingBox> reach(filled.size());
+        for (std::size_t k = 0; k < filled.size(); ++k) {
+            for (const Index v : oriented[filled[k]]) reach[k].extend(pos[v]);
+            const Scalar grow = reach[k].diagonal();
+            reach[k].min.array() -= grow;
+            reach[k].max.array() += grow;
+        }
+        auto patch_within_reach = [&](const std::vector<Vec3>& y) {
+            for (Index f = nf0; f < hm.face_capacity(); ++f) {
+                if (hm.is_removed_face(f) || patch[f] == HalfedgeMesh::invalid) continue;
+                const BoundingBox& b = reach[patch[f]];
+                for (int c = 0; c < 3; ++c) {
+                    const Index v = hm.face_vertex(f, c);
+                    if (v < nv0) continue;
+                    const Vec3& q = y[v];
+                    if (!q.allFinite() || (q.array() < b.min.array()).any() || (q.array() > b.max.array()).any())
+                        return false;
+                }
+            }
+            return true;
+        };
         std::vector<Vec3> x(hm.vertex_capacity());
         for (Index v = 0; v < x.size(); ++v) x[v] = hm.position(v);
         std::vector<Face> all(hm.face_capacity());
@@ -519,8 +541,15 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
             std::fill(free.begin() + static_cast<std::ptrdiff_t>(nv0), free.end(), 1);
             const MeshTopology topo(x.size(), all);
             progress.check();
-            if (detail::bilaplacian_fill(x, topo, free) == 0)
-                detail::biharmonic_fill(x, topo, free, params.fair_delta);  // a singular system
+            // The cotangent system is non-symmetric and can be near-singular on needle
+            // triangles of the refined patch: a solution that leaves its hole's reach (the
+            // loop's box grown by its diagonal on every side) is refused, and the uniform
+            // thin-plate system (symmetric positive definite) fairs the patch instead.
+            const std::vector<Vec3> before = x;
+            if (detail::bilaplacian_fill(x, topo, free) == 0 || !patch_within_reach(x)) {
+                x = before;
+                detail::biharmonic_fill(x, topo, free, params.fair_delta);
+            }
         }
         progress.check();
         new_pos.assign(x.begin() + static_cast<std::ptrdiff_t>(nv0), x.end());
