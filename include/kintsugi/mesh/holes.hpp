@@ -545,9 +545,10 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
             // triangles of the refined patch: a solution that leaves its hole's reach (the
             // loop's box grown by its diagonal on every side) is refused, and the uniform
             // thin-plate system (symmetric positive definite) fairs the patch instead.
-            const std::vector<Vec3> before = x;
+            // Only the new vertices move; keep them to restore.
+            const std::vector<Vec3> before(x.begin() + static_cast<std::ptrdiff_t>(nv0), x.end());
             if (detail::bilaplacian_fill(x, topo, free) == 0 || !patch_within_reach(x)) {
-                x = before;
+                std::copy(before.begin(), before.end(), x.begin() + static_cast<std::ptrdiff_t>(nv0));
                 detail::biharmonic_fill(x, topo, free, params.fair_delta);
             }
         }
