@@ -22,6 +22,8 @@
 #include <cmath>
 #include <numbers>
 #include <stop_token>
+#include <string>
+#include <vector>
 
 namespace ks = kintsugi;
 using namespace kintsugi_test::completion;
@@ -190,4 +192,112 @@ TEST_CASE("complete_holes_example_based: cancellation leaves the mesh untouched"
     CHECK(r.energy.empty());
     CHECK(mesh.vertices == in.vertices);
     CHECK(mesh.faces == in.faces);
+}
+
+namespace {
+// Sets the completion's test hook for one scope.
+struct AfterUpdateHook {
+    explicit AfterUpdateHook(void (*f)(ks::HalfedgeMesh&, const std::vector<std::uint8_t>&)) {
+        ks::detail::completion::test_after_update = f;
+    }
+    ~AfterUpdateHook() { ks::detail::completion::test_after_update = nullptr; }
+    AfterUpdateHook(const AfterUpdateHook&) = delete;
+    AfterUpdateHook& operator=(const AfterUpdateHook&) = delete;
+};
+// The last patch vertex (it belongs to one hole), or invalid.
+ks::Index last_patch_vertex(const ks::HalfedgeMesh& hm, const std::vector<std::uint8_t>& omega) {
+    for (ks::Index v = hm.vertex_capacity(); v-- > 0;)
+        if (!hm.is_removed_vertex(v) && omega[v]) return v;
+    return ks::HalfedgeMesh::invalid;
+}
+void check_closed_finite(const ks::IndexedMesh& m) {
+    const auto topo = ks::topology_report(m);
+    CHECK(topo.closed);
+    CHECK(topo.manifold);
+    CHECK(topo.consistently_oriented);
+    CHECK(topo.genus == 0);
+    CHECK(std::all_of(m.vertices.begin(), m.vertices.end(), [](const ks::Vec3& p) { return p.allFinite(); }));
+}
+}  // namespace
+
+TEST_CASE("complete_holes_example_based: the explosion guard reverts a hole to its thin-plate fill") {
+    const ks::IndexedMesh in = small_bunny_with_hole();
+    const auto holes = selected_holes(in, 0.25);
+    REQUIRE(holes.size() == 1);
+    ks::IndexedMesh tp = in;
+    (void)ks::fill_holes(tp, holes);
+    auto canonical = [](ks::Face f) {
+        std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
+        return f;
+    };
+    // The hole is closed by exactly fill_holes' patch, flagged with `why`, λ = 0.
+    auto check_reverted = [&](const ks::IndexedMesh& m, const ks::CompletionResult& r, ks::HoleStatus why) {
+        REQUIRE(r.status == ks::Status::ok);
+        CHECK(r.filled_holes == 1);
+        REQUIRE(r.hole_status.size() == 1);
+        CHECK(r.hole_status[0] == why);
+        REQUIRE(r.example_weight.size() == 1);
+        CHECK(r.example_weight[0] == 0);
+        check_closed_finite(m);
+        check_energy_monotone(r);
+        CHECK(m.vertices == tp.vertices);
+        REQUIRE(m.faces.size() == tp.faces.size());
+        for (std::size_t f = 0; f < m.faces.size(); ++f) CHECK(canonical(m.faces[f]) == canonical(tp.faces[f]));
+    };
+    SUBCASE("a patch vertex thrown a million units away") {
+        AfterUpdateHook hook([](ks::HalfedgeMesh& hm, const std::vector<std::uint8_t>& omega) {
+            const ks::Index v = last_patch_vertex(hm, omega);
+            if (v != ks::HalfedgeMesh::invalid) hm.position(v) += ks::Vec3(1e6, 0, 0);
+        });
+        ks::IndexedMesh m = in;
+        const auto r = ks::complete_holes_example_based(m);
+        check_reverted(m, r, ks::HoleStatus::reverted_left_reach);
+        CHECK(std::string(ks::to_string(r.hole_status[0])) == "left_reach");
+    }
+    SUBCASE("a patch vertex that is not a number") {
+        AfterUpdateHook hook([](ks::HalfedgeMesh& hm, const std::vector<std::uint8_t>& omega) {
+            const ks::Index v = last_patch_vertex(hm, omega);
+            if (v != ks::HalfedgeMesh::invalid) hm.position(v).y() = std::nan("");
+        });
+        ks::IndexedMesh m = in;
+        check_reverted(m, ks::complete_holes_example_based(m), ks::HoleStatus::reverted_left_reach);
+    }
+    SUBCASE("more patch vertices than max_patch_growth allows") {
+        ks::IndexedMesh m = in;
+        check_reverted(m, ks::complete_holes_example_based(m, {.max_patch_growth = 1e-3}),
+                       ks::HoleStatus::reverted_vertex_bound);
+    }
+    SUBCASE("the paper's fan as the initial patch: the reverted hole gets the thin-plate fill") {
+        ks::IndexedMesh m = in;
+        check_reverted(m, ks::complete_holes_example_based(m, {.initial = ks::InitialPatch::fan, .max_patch_growth = 1e-3}),
+                       ks::HoleStatus::reverted_vertex_bound);
+    }
+    CHECK_THROWS_WITH_AS(ks::complete_holes_example_based(tp, {.max_patch_growth = 0}),
+                         doctest::Contains("max_patch_growth"), ks::invalid_input);
+}
+
+TEST_CASE("complete_holes_example_based: the guard reverts only the hole that explodes") {
+    // bunny.off with two holes; the last patch vertex (of one hole) is thrown away once.
+    const ks::IndexedMesh truth = ks::read_mesh(ks::test::test_data("bunny.off").string());
+    ks::BoundingBox box;
+    for (const auto& p : truth.vertices) box.extend(p);
+    const ks::IndexedMesh in = cut_holes(truth, {truth.vertices[300], truth.vertices[1500]}, 0.04 * box.diagonal());
+    REQUIRE(selected_holes(in, 0.25).size() == 2);
+    AfterUpdateHook hook([](ks::HalfedgeMesh& hm, const std::vector<std::uint8_t>& omega) {
+        static int calls = 0;
+        const ks::Index v = last_patch_vertex(hm, omega);
+        if (v != ks::HalfedgeMesh::invalid && calls++ == 0) hm.position(v) += ks::Vec3(0, 1e3, 0);
+    });
+    ks::IndexedMesh m = in;
+    const auto r = ks::complete_holes_example_based(m);
+    check_completed(m, r, 2, 0);
+    check_closed_finite(m);
+    check_energy_monotone(r);
+    REQUIRE(r.hole_status.size() == 2);
+    CHECK(std::count(r.hole_status.begin(), r.hole_status.end(), ks::HoleStatus::reverted_left_reach) == 1);
+    CHECK(std::count(r.hole_status.begin(), r.hole_status.end(), ks::HoleStatus::completed) == 1);
+    CHECK(r.energy.size() == 3);  // the second run minimised the other hole through every level
+    const auto [mean, mx] = distance_to(ks::TriangleIndex(truth), new_vertices(m, in.vertices.size()));
+    MESSAGE("two holes, one reverted: mean distance " << mean / box.diagonal() << ", max " << mx / box.diagonal());
+    CHECK(mx < 0.02 * box.diagonal());
 }

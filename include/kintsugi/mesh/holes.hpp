@@ -342,6 +342,24 @@ void append_patch(M& mesh, const std::vector<Vec3>& new_pos, const std::vector<F
     }
 }
 
+/// The reach of a hole: the bounding box of its loop (vertices `loop` of `pos`) grown by
+/// the box's diagonal on every side. A patch vertex outside it, or not finite, has left its
+/// hole: fill_holes refuses such a fairing, complete_holes_example_based reverts such a
+/// patch to the thin-plate fill.
+inline BoundingBox hole_reach(const std::vector<Index>& loop, const std::vector<Vec3>& pos) {
+    BoundingBox b;
+    for (const Index v : loop) b.extend(pos[v]);
+    const Scalar grow = b.diagonal();
+    b.min.array() -= grow;
+    b.max.array() += grow;
+    return b;
+}
+
+/// Whether q is finite and inside the reach (hole_reach) of its hole.
+inline bool within_reach(const BoundingBox& reach, const Vec3& q) {
+    return q.allFinite() && !(q.array() < reach.min.array()).any() && !(q.array() > reach.max.array()).any();
+}
+
 /// Whether the edge of h is locally Delaunay: the angles opposite it sum to at most pi.
 inline bool is_locally_delaunay(const HalfedgeMesh& m, Index h) {
     const Index g = m.twin(h);
@@ -512,22 +530,13 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
         progress.stage("fair", 0.7, 0.95);
         // Each hole's reach: the box of its loop grown by the box's diagonal.
         std::vector<BoundingBox> reach(filled.size());
-        for (std::size_t k = 0; k < filled.size(); ++k) {
-            for (const Index v : oriented[filled[k]]) reach[k].extend(pos[v]);
-            const Scalar grow = reach[k].diagonal();
-            reach[k].min.array() -= grow;
-            reach[k].max.array() += grow;
-        }
+        for (std::size_t k = 0; k < filled.size(); ++k) reach[k] = detail::hole_reach(oriented[filled[k]], pos);
         auto patch_within_reach = [&](const std::vector<Vec3>& y) {
             for (Index f = nf0; f < hm.face_capacity(); ++f) {
                 if (hm.is_removed_face(f) || patch[f] == HalfedgeMesh::invalid) continue;
-                const BoundingBox& b = reach[patch[f]];
                 for (int c = 0; c < 3; ++c) {
                     const Index v = hm.face_vertex(f, c);
-                    if (v < nv0) continue;
-                    const Vec3& q = y[v];
-                    if (!q.allFinite() || (q.array() < b.min.array()).any() || (q.array() > b.max.array()).any())
-                        return false;
+                    if (v >= nv0 && !detail::within_reach(reach[patch[f]], y[v])) return false;
                 }
             }
             return true;
