@@ -2,8 +2,10 @@
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T]
-// [--edge-iterations N] [--face-iterations N] [--no-features] [--features FEATURES.ply]`:
-// feature-aware bilateral smoothing; the sharp edges can be written as PLY polylines.
+// [--edge-iterations N] [--face-iterations N] [--no-features] [--features FEATURES.ply]
+// [--preset default|paper]`: feature-aware bilateral smoothing; the sharp edges can be
+// written as PLY polylines. `--preset paper` starts from the paper's published
+// parameters and detection (FeatureBilateralParams::paper()); options given win.
 #include "common.hpp"
 
 #include <kintsugi/io/read.hpp>
@@ -25,6 +27,10 @@ struct SmoothOptions {
     std::size_t face_iterations = 0;
     CLI::Option* d_option = nullptr;
     CLI::Option* face_iterations_option = nullptr;
+    std::string preset = "default";
+    // The options that override a preset's values when given.
+    CLI::Option *a_option = nullptr, *b_option = nullptr, *c_option = nullptr, *threshold_option = nullptr,
+                *cube_option = nullptr, *edge_iterations_option = nullptr;
 };
 
 kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
@@ -35,23 +41,28 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     // Ranges are those kintsugi::smooth_feature_bilateral accepts: scales positive and
     // finite, the threshold in [0, 1], at most 10000 passes.
     const auto positive = kcli::real(0.0, std::numeric_limits<double>::max(), true);
-    cmd.add_option("--a", p.a, "Edge spatial scale (sigma = a|e|/2, a|e|)")->capture_default_str()->check(positive);
-    cmd.add_option("--b", p.b, "Edge range scale (sigma = b|e|)")->capture_default_str()->check(positive);
-    cmd.add_option("--c", p.c, "Face spatial scale (sigma = c|e|/2, c|e|)")->capture_default_str()->check(positive);
+    o->a_option = cmd.add_option("--a", p.a, "Edge spatial scale (sigma = a|e|/2, a|e|)")->capture_default_str()->check(positive);
+    o->b_option = cmd.add_option("--b", p.b, "Edge range scale (sigma = b|e|)")->capture_default_str()->check(positive);
+    o->c_option = cmd.add_option("--c", p.c, "Face spatial scale (sigma = c|e|/2, c|e|)")->capture_default_str()->check(positive);
     o->d_option = cmd.add_option("--d", o->d, "Face range scale (sigma = d|e|; default: from the estimated noise level)")
                       ->check(positive);
-    cmd.add_option("--edge-threshold", p.detection.edge_threshold, "Edge strength threshold (paper: 0.251; scans 0.102)")
+    o->threshold_option = cmd.add_option("--edge-threshold", p.detection.edge_threshold, "Edge strength threshold (paper: 0.251; scans 0.102)")
         ->capture_default_str()
         ->check(kcli::real(0.0, 1.0));
-    cmd.add_option("--voting-cube", p.detection.voting_cube, "Voting cube side in mean edge lengths (paper: 3; scans 9)")
+    o->cube_option = cmd.add_option("--voting-cube", p.detection.voting_cube, "Voting cube side in mean edge lengths (paper: 3; scans 9)")
         ->capture_default_str()
         ->check(positive);
-    cmd.add_option("--edge-iterations", p.edge_iterations, "Passes of the sharp-edge filters")
+    o->edge_iterations_option = cmd.add_option("--edge-iterations", p.edge_iterations, "Passes of the sharp-edge filters")
         ->capture_default_str()
         ->check(kcli::count(0, 10000));
     o->face_iterations_option = cmd.add_option("--face-iterations", o->face_iterations,
                                                "Passes of the face filters (default: from the estimated noise level)")
                                     ->check(kcli::count(0, 10000));
+    cmd.add_option("--preset", o->preset,
+                   "Starting values: default (measured, d and face iterations from the noise) or paper (the "
+                   "paper's published parameters and detection); options given override them")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"default", "paper"}));
     cmd.add_flag("--no-features", o->no_features, "Run the face filters alone, without sharp-edge handling");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
@@ -66,6 +77,15 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ctx.add_timing("read", sw.seconds());
 
         kintsugi::FeatureBilateralParams params = o->params;
+        if (o->preset == "paper") {
+            params = kintsugi::FeatureBilateralParams::paper();
+            if (o->a_option->count() > 0) params.a = o->params.a;
+            if (o->b_option->count() > 0) params.b = o->params.b;
+            if (o->c_option->count() > 0) params.c = o->params.c;
+            if (o->threshold_option->count() > 0) params.detection.edge_threshold = o->params.detection.edge_threshold;
+            if (o->cube_option->count() > 0) params.detection.voting_cube = o->params.detection.voting_cube;
+            if (o->edge_iterations_option->count() > 0) params.edge_iterations = o->params.edge_iterations;
+        }
         params.features = !o->no_features;
         if (o->d_option->count() > 0) params.d = o->d;
         if (o->face_iterations_option->count() > 0) params.face_iterations = o->face_iterations;
@@ -91,6 +111,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["command"] = "smooth";
         j["input"] = o->input;
         j["output"] = o->output;
+        j["parameters"]["preset"] = o->preset;
         j["parameters"]["a"] = params.a;
         j["parameters"]["b"] = params.b;
         j["parameters"]["c"] = params.c;

@@ -53,8 +53,9 @@
 /// Filters 1–2 run `edge_iterations` times on the sharp-edge vertices, then filters 3–4
 /// run `face_iterations` times. Within one face iteration filter 3 is applied
 /// `normal_iterations` times (paper: once) and filter 4 `vertex_iterations` times.
-/// With `keep_edge_vertices` filter 4 leaves the sharp-edge vertices at their
-/// edge-smoothed positions; by default it moves them too (see the departures below).
+/// Filter 4 moves the sharp-edge vertices too, as it moves every vertex (the paper
+/// applies the face filters to the whole mesh); by default filters 1–2 then run
+/// `edge_iterations` times more on them ("Edges that straighten" below).
 /// With `features = false` no features are detected and filters 3–4 run alone. Every
 /// pass reads the values of the previous one (Jacobi updates), so the result does not
 /// depend on the thread count.
@@ -73,7 +74,21 @@
 /// - Face filter scales: c = 1, d = 0.14 (or from the noise, below), ten filter-3 and two
 ///   filter-4 passes per face iteration, three face iterations or more from the noise
 ///   (paper: c = 2, d = 0.1, one, one, two).
-/// - Sharp-edge vertices take part in filter 4 (`keep_edge_vertices` = false).
+/// - Filters 1–2 run again after the face filters (`edge_vertex_motion`, below).
+///
+/// ## Edges that straighten
+/// Filter 4 sees the faces of both sides of a crease and moves its vertices across it
+/// too, which undid most of what filters 1–2 did (the edge stage was worth 0.05° on
+/// Block0.4). With EdgeVertexMotion::straighten (the default) filters 1–2 run again,
+/// `edge_iterations` times, on the sharp edges after the face filters, so the edge
+/// vertices end on their filtered edge lines. Measured on a noisy box (16 × 16 per side,
+/// 0.5|e| along the normals) and Block0.4: the angle of the sharp edges to the true
+/// creases falls from 4.43° / 9.65° (no edge stage) and 4.14° / 9.17° (filter 4 last)
+/// to 3.56° / 8.20°, the mean normal error from 3.00° / 5.29° to 2.95° / 5.26°. Letting
+/// filter 4 move them only along their edge line (the other reading) or not at all
+/// kept their noise across the crease (Block0.4: 7.5° instead of 5.3°); see
+/// docs/methods/feature_bilateral.md. FeatureBilateralParams::paper() gives the paper's
+/// published parameters and detection, to measure these departures against.
 ///
 /// ## Parameters from the data (the paper's future work)
 /// When `d` or `face_iterations` is left unset (the default), the input's noise level
@@ -144,6 +159,14 @@ struct SharpFeatureResult {
     std::vector<StageTiming> timings;  ///< "topology", "features"
 };
 
+/// How the vertices of sharp edges are treated after filters 1–2 (see "Edges that
+/// straighten" in the file comment).
+enum class EdgeVertexMotion {
+    straighten,  ///< filter 4 moves them, then filters 1–2 run again at the end (default)
+    free,        ///< filter 4 moves them like every vertex; the edge stage is mostly overwritten
+    fixed,       ///< filter 4 leaves them where filters 1–2 put them (measured worse)
+};
+
 /// Parameters of smooth_feature_bilateral(). a and b are the paper's; c, d and the
 /// iteration counts were tuned by measurement (see "Departures" in the file comment).
 struct FeatureBilateralParams {
@@ -163,9 +186,34 @@ struct FeatureBilateralParams {
     bool features = true;  ///< false: no feature detection, filters 3–4 alone
     std::size_t normal_iterations = 10;    ///< passes of filter 3 per face iteration (paper: 1; measured)
     std::size_t vertex_iterations = 2;     ///< passes of filter 4 per face iteration (paper: 1; measured)
-    bool keep_edge_vertices = false;  ///< true: filter 4 leaves sharp-edge vertices alone
+    /// What becomes of the sharp-edge vertices after filters 1–2 (see EdgeVertexMotion;
+    /// default straighten: measured in docs/methods/feature_bilateral.md).
+    EdgeVertexMotion edge_vertex_motion = EdgeVertexMotion::straighten;
     bool separate_features = true;    ///< sharp edges bound the face filters' neighbourhoods (see above)
     RunControl control{};
+
+    /// The paper's published parameters and detection (its synthetic-noise example:
+    /// voting cube 3|e|, threshold 0.251, the direction test on raw normals, (a, b) =
+    /// (2, 0.1) twice, then (c, d) = (2, 0.1) twice with one filter-3 and one filter-4
+    /// pass, the face filters over the whole mesh, no sharp-edge barriers), so that the
+    /// measured departures above stay measurable. Its scan example used a 9|e| cube,
+    /// threshold 0.102, (a, b) = (10, 1) once and (c, d) = (2, 1) once.
+    [[nodiscard]] static FeatureBilateralParams paper() {
+        FeatureBilateralParams p;
+        p.a = 2;
+        p.b = 0.1;
+        p.c = 2;
+        p.d = 0.1;
+        p.detection = {.voting_cube = 3, .edge_threshold = 0.251, .direction_threshold = 0.9,
+                       .prefilter_iterations = 0, .crease_test = false, .presmooth_iterations = 0};
+        p.edge_iterations = 2;
+        p.face_iterations = 2;
+        p.normal_iterations = 1;
+        p.vertex_iterations = 1;
+        p.edge_vertex_motion = EdgeVertexMotion::free;
+        p.separate_features = false;
+        return p;
+    }
 };
 
 /// Result of smooth_feature_bilateral().
@@ -175,7 +223,8 @@ struct FeatureBilateralResult {
     std::size_t vertices = 0, faces = 0;
     std::size_t feature_vertices = 0;  ///< vertices on sharp edges (moved by filters 1–2)
     std::size_t degenerate_faces = 0;  ///< faces of zero area in the input
-    /// "topology", "noise level" (when estimated), "features", "edge smoothing", "face smoothing"
+    /// "topology", "noise level" (when estimated), "features", "edge smoothing", "face smoothing",
+    /// "edge straightening" (EdgeVertexMotion::straighten with sharp edges found)
     std::vector<StageTiming> timings;
     /// Faces repeating an earlier face (same corners, same cyclic order): smoothed as one.
     std::size_t duplicate_faces = 0;
@@ -472,6 +521,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
                                      params.vertex_iterations};
         fbs::Barriers barriers;
         fbs::Workspace ws;
+        std::vector<std::array<Index, 2>> final_edges;  // straighten: the edges filters 1–2 rerun on
+        std::vector<Index> final_vertices;
         if (params.features) {
             progress.stage("features", 0.04, 0.45);
             auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress, ws);
@@ -481,13 +532,17 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             for (std::size_t v = 0; v < nv; ++v)
                 if (on_edge[v]) edge_vertices.push_back(v);
             result.feature_vertices = edge_vertices.size();
-            if (params.keep_edge_vertices) fixed = on_edge;
+            if (params.edge_vertex_motion == EdgeVertexMotion::fixed) fixed = on_edge;
 
             progress.stage("edge smoothing", 0.45, 0.5);
             for (std::size_t it = 0; it < params.edge_iterations; ++it) {
                 const double n = static_cast<double>(params.edge_iterations);
                 fbs::edge_iteration(m.vertices, fd.sharp_edges, edge_vertices, L, fs, progress,
                                     static_cast<double>(it) / n, static_cast<double>(it + 1) / n);
+            }
+            if (params.edge_vertex_motion == EdgeVertexMotion::straighten) {
+                final_edges = fd.sharp_edges;
+                final_vertices = edge_vertices;
             }
             if (params.separate_features) {
                 barriers.topo = &topo;
@@ -499,11 +554,19 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             result.features = fbs::to_public(std::move(fd), so.frame.to_world(L));
             fbs::restore_order(result.features, so.order);
         }
-        progress.stage("face smoothing", params.features ? 0.5 : 0.04, 1.0);
+        progress.stage("face smoothing", params.features ? 0.5 : 0.04, final_edges.empty() ? 1.0 : 0.98);
         for (std::size_t it = 0; it < face_iterations; ++it) {
             const double n = static_cast<double>(face_iterations);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
                                 static_cast<double>(it + 1) / n, ws, &barriers, it > 0);
+        }
+        if (!final_edges.empty()) {
+            progress.stage("edge straightening", 0.98, 1.0);
+            for (std::size_t it = 0; it < params.edge_iterations; ++it) {
+                const double n = static_cast<double>(params.edge_iterations);
+                fbs::edge_iteration(m.vertices, final_edges, final_vertices, L, fs, progress,
+                                    static_cast<double>(it) / n, static_cast<double>(it + 1) / n);
+            }
         }
         result.timings = progress.finish();
     } catch (const detail::cancelled_exception&) {
