@@ -318,7 +318,7 @@ TEST_CASE("edges straighten: the sharp-edge vertices end on straight creases, an
                            sf = straightness(no_features, detected, sh.clean);
         const double n = ks::denoise_metrics(straight, sh.clean).mean_normal_angle_deg,
                      n4 = ks::denoise_metrics(filter4_last, sh.clean).mean_normal_angle_deg;
-        MESSAGE(sh.name << " (" << detected.size() << " sharp edges): distance to the creases (|e|) / angle (deg): noisy "
+        MESSAGE(std::string(sh.name) << " (" << detected.size() << " sharp edges): distance to the creases (|e|) / angle (deg): noisy "
                         << s_in.distance / L << " / " << s_in.angle << ", straightened " << s.distance / L << " / "
                         << s.angle << ", no edge stage " << s0.distance / L << " / " << s0.angle
                         << ", filter 4 last " << s4.distance / L << " / " << s4.angle << ", features=false "
