@@ -3,7 +3,8 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi complete IN OUT [--max-hole-size F] [--max-hole-edges N] [--initial fan]`:
 // example-based hole completion (docs/methods/example_completion.md); --json reports
-// the energy after every iteration of every level.
+// the energy after every iteration of every level, and per hole the weight λ of the
+// blend and the explosion guard's status.
 #include "common.hpp"
 
 #include <kintsugi/complete/example_completion.hpp>
@@ -53,6 +54,11 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_option("--max-iterations", p.max_iterations, "Most iterations per level")
         ->capture_default_str()
         ->check(kcli::count(1, 10000));
+    cmd.add_option("--max-patch-growth", p.max_patch_growth,
+                   "Explosion guard: most patch vertices per hole, as a multiple of a disk of its perimeter; "
+                   "a hole beyond it keeps its thin-plate fill")
+        ->capture_default_str()
+        ->check(positive);
     return [o, &ctx] {
         ctx.check_output(o->output, kintsugi::OutputKind::mesh);
         kcli::Stopwatch sw;
@@ -102,6 +108,14 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             levels.emplace_back(std::move(e));
         }
         j["energy"] = kcli::Json(std::move(levels));
+        // Per filled hole: λ of the blend with the smooth fill, and whether the explosion
+        // guard kept it (completed) or reverted it to the thin-plate fill (and why).
+        kcli::Json::Array weights, status;
+        for (const double w : r.example_weight) weights.emplace_back(w);
+        for (const auto s : r.hole_status) status.emplace_back(kintsugi::to_string(s));
+        j["example_weight"] = kcli::Json(std::move(weights));
+        j["hole_status"] = kcli::Json(std::move(status));
+        j["parameters"]["max_patch_growth"] = params.max_patch_growth;
         ctx.info("filled " + std::to_string(r.filled_holes) + " holes with " + std::to_string(r.new_vertices) +
                  " new vertices, " + std::to_string(r.new_faces) + " faces -> " + o->output);
     };

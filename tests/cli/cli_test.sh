@@ -172,8 +172,13 @@ expect 0 "info of the holey bunny" -- "$bin" info "$work/holey.off" --json
 json_check "one hole cut" "j['boundary_loops']==1"
 expect 0 "complete --json" -- "$bin" complete "$work/holey.off" "$work/completed.ply" --json
 json_check "complete fields" "j['command']=='complete' and j['filled_holes']==1 and j['new_vertices']>10 and j['vertices']==1823+j['new_vertices'] and len(j['energy'])==3 and all(all(a>=b for a,b in zip(l,l[1:])) for l in j['energy']) and 'level 3' in j['timings']"
+json_check "complete per-hole fields" "len(j['example_weight'])==1 and 0<=j['example_weight'][0]<=1 and j['hole_status']==['completed']"
 expect 0 "completed mesh is closed" -- "$bin" info "$work/completed.ply" --json
 json_check "completed topology" "j['closed'] is True and j['boundary_loops']==0 and j['non_manifold_edges']==0 and j['genus']==0"
+expect 0 "complete, explosion guard forced" -- "$bin" complete "$work/holey.off" "$work/reverted.ply" --max-patch-growth 0.001 --json
+json_check "guard reverts the hole" "j['filled_holes']==1 and j['hole_status']==['vertex_bound'] and j['example_weight']==[0] and j['new_vertices']>10"
+expect 0 "reverted mesh is closed" -- "$bin" info "$work/reverted.ply" --json
+json_check "reverted topology" "j['closed'] is True and j['boundary_loops']==0 and j['non_manifold_edges']==0 and j['genus']==0"
 expect 0 "complete, hole too large for --max-hole-size" -- "$bin" complete "$work/holey.off" "$work/same.off" --max-hole-size 0.01 --json
 json_check "nothing filled" "j['filled_holes']==0 and j['new_vertices']==0"
 expect 1 "complete on a non-manifold mesh" -- "$bin" complete "$open_mesh" "$work/nm.ply"

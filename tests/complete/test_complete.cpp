@@ -51,6 +51,7 @@ TEST_CASE_TEMPLATE("complete_holes_example_based: shipped bunny.off with a hole,
     REQUIRE(r.status == ks::Status::ok);
     CHECK(r.filled_holes == 1);
     CHECK(r.unfilled_holes.empty());
+    CHECK(r.hole_status == std::vector<ks::HoleStatus>{ks::HoleStatus::completed});  // the guard did not fire
     CHECK(r.new_vertices > 10);
     CHECK(ks::num_vertices(mesh) == in.vertices.size() + r.new_vertices);
     CHECK(ks::num_faces(mesh) == in.faces.size() + r.new_faces);
