@@ -8,7 +8,9 @@
 // triangulate_refine_and_fair_hole on the same holes in the same run.
 // Measured 2026-12-01 on the shared 2-core machine (other builds running): radius 5 %
 // (36,340 vertices, 1,323 new) 15.8 s wall, levels 2.9 / 3.7 / 8.7 s; radius 2 % (215 new)
-// 11.5 s; CGAL 0.046 s and 0.060 s. More in docs/methods/example_completion.md.
+// 11.5 s; CGAL 0.046 s and 0.060 s. 2026-12-02 with the blend (load 7.5-8.5 on 2 cores):
+// radius 5 % 12.5-13.8 s CPU (19.0-21.1 s wall), radius 2 % 9.5 s CPU. More in
+// docs/methods/example_completion.md.
 #include "common.hpp"
 
 #include <kintsugi/io/read.hpp>
