@@ -31,6 +31,9 @@
 //     Twelve0.5Imp.  noisy 28.85/0.348  ours 7.99/0.156  features=false 7.99/0.157 (7.990 vs 7.994)
 //                    Taubin  8.12/0.195  smooth_shape 11.47/0.333  (63° creases not found)
 //   Volume change +0.13 %, -0.12 %, +0.43 %.
+// 2026-12-02, with the edge straightening (filters 1-2 again after the face filters):
+//   ours Block0.4 5.26/0.143, SharpSphere0.3 8.51/0.142, Twelve0.5Imp. 7.99/0.156; the noise
+//   table (README, with the paper preset's column) took 12.7 s CPU (load 6-9).
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
