@@ -12,7 +12,7 @@ from the input points to the result. Distances in % of the reference's bounding-
 diagonal. Neither shape was used to tune kintsugi's defaults (held out; see
 docs/methods/rbf_octree.md, which keeps the results).
 
-Usage: /usr/bin/python3 bench/compare_rbf_open3d.py KINTSUGI_BINARY [--points 200000]
+Usage: /usr/bin/python3 bench/compare_rbf_open3d.py KINTSUGI_BINARY [--points 200000] [--shapes fertility,gargoyle]
 Needs python3-open3d (Debian) and ../shared/data.
 """
 import argparse
@@ -77,6 +77,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("binary")
     ap.add_argument("--points", type=int, default=200000)
+    ap.add_argument("--shapes", default="fertility,gargoyle", help="comma-separated subset to run")
     a = ap.parse_args()
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     with open("/proc/loadavg") as f:
@@ -88,6 +89,8 @@ def main():
         fert = truth.sample_points_uniformly(a.points, use_triangle_normal=True)
         garg = o3d.io.read_point_cloud(os.path.join(DATA, "berger_srb", "gargoyle.ply"))
         for name, pcd, ref in (("fertility", fert, truth), ("gargoyle", garg, None)):
+            if name not in a.shapes.split(","):
+                continue
             diag = np.linalg.norm(pcd.get_max_bound() - pcd.get_min_bound())
             ref_pts = np.asarray(ref.sample_points_uniformly(200000).points) if ref else np.asarray(pcd.points)
             for method in ("kintsugi rbf", "Open3D Poisson d10"):
@@ -100,7 +103,9 @@ def main():
                 to_res = 100 * mean_distance(ref_pts, mesh) / diag
                 back = 100 * mean_distance(np.asarray(mesh.vertices), ref) / diag if ref else float("nan")
                 rows.append((name, len(pcd.points), method, wall, cpu, to_res, back, len(mesh.triangles), note))
-                print("%s, %s: %.2f s wall, %.2f s CPU" % (name, method, wall, cpu), flush=True)
+                # Each row as soon as it is measured: a run cut short keeps what it has.
+                print("%s, %s: %.2f s wall, %.2f s CPU, ref->res %.4f %%, res->ref %.4f %%, %d faces, %s"
+                      % (name, method, wall, cpu, to_res, back, len(mesh.triangles), note), flush=True)
     print("%-10s %8s %-20s %8s %8s %12s %12s %9s %s" % ("shape", "points", "method", "wall s", "CPU s",
                                                         "ref->res %", "res->ref %", "faces", ""))
     for r in rows:
