@@ -111,9 +111,4 @@ inline kintsugi::IndexedMesh remove_faces(const kintsugi::IndexedMesh& in,
     return out;
 }
 
-// Unit sphere (icosphere, 5 subdivisions: 20,480 faces before the cut) minus the cap z > zcut.
-inline kintsugi::IndexedMesh sphere_with_cap_hole(double zcut) {
-    return remove_faces(icosphere(5), [zcut](const kintsugi::Vec3& c) { return c.z() > zcut; });
-}
-
 }  // namespace kintsugi_test
