@@ -396,79 +396,14 @@ struct State {
     }
 };
 
-}  // namespace detail::completion
 
-/// @brief Fills holes of a triangle mesh with geometry that resembles the rest of the
-/// object (Kawai, Sato, Yokoya, "3D surface completion by minimizing energy based on
-/// similarity of local shape", TVRSJ 2009; docs/methods/example_completion.md).
-///
-/// The selected holes are closed by an initial patch (thin-plate fill or the paper's
-/// fan); then, per level of a coarse-to-fine schedule, three steps repeat until the
-/// energy E (eq. 1) converges: (i) each vertex p of Ω' (the patch and the vertices
-/// within A of it) finds the data vertex p̂ whose surface, aligned by the two quadric
-/// frames (eq. 3-7, mirrored frames too), is closest to p's neighbourhood A along the
-/// normal lines (SSD, eq. 2), testing the top_percent % of candidates by curvature
-/// likeness (eq. 9); (ii) every patch vertex moves at once along its normal to the
-/// weighted mean of where its normal line meets the surfaces its neighbours matched
-/// (eq. 16), weights 1 outside and 1/s^m inside the hole; (iii) patch edges are split or
-/// collapsed to keep the level's density. An iteration that would raise E is undone and
-/// ends the level, so E never rises within a level. Last, per hole, the patch's offset
-/// from the thin-plate fairing of the same patch is kept in the share λ that the copied
-/// shapes explain of the surroundings better than a quadric (blend_with_smooth).
-///
-/// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). The existing
-///         vertices and faces are untouched; new ones are appended. An IndexedMesh with
-///         normals receives normals for the new vertices.
-/// @param mesh   an oriented 2-manifold with boundary
-/// @param params hole selection, schedule, cancellation (CompletionParams)
-/// @throws invalid_input (mesh untouched) naming the element when the mesh is empty,
-///         not an oriented manifold (including a boundary that touches itself: a
-///         non-manifold vertex), has NaN/Inf coordinates, a given hole is not a
-///         boundary loop, or a parameter is out of range.
-/// @return Status::ok (closed holes counted, loops that could not be triangulated in
-///         unfilled_holes); Status::cancelled: the mesh is untouched.
-template <TopologyMutableMesh M>
-CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& params = {}) {
-    using namespace detail::completion;
-    const std::string fn = "kintsugi::complete_holes_example_based: ";
-    auto bad = [&](const std::string& what) { throw invalid_input(fn + what); };
-    if (!(params.max_hole_size > 0)) bad("max_hole_size must be > 0 (fraction of the diagonal, default 0.25)");
-    if (!(params.outer_border_extent >= 0)) bad("outer_border_extent must be >= 0 (default 0.75)");
-    if (!(params.s > 1) || !std::isfinite(params.s)) bad("s = " + std::to_string(params.s) + " must be finite and > 1 (default 2)");
-    if (!(params.top_percent > 0 && params.top_percent <= 100))
-        bad("top_percent = " + std::to_string(params.top_percent) + " must lie in (0, 100] (default 10)");
-    if (params.levels.empty()) bad("levels is empty; give at least one level (default: Table 1's three)");
-    for (std::size_t i = 0; i < params.levels.size(); ++i) {
-        const auto& L = params.levels[i];
-        const std::string w = "level " + std::to_string(i + 1) + ": ";
-        if (!(L.a_radius > 0) || !std::isfinite(L.a_radius)) bad(w + "a_radius must be finite and > 0");
-        if (!(L.merge_below >= 0) || !(L.split_above > 2 * L.merge_below) || !std::isfinite(L.split_above))
-            bad(w + "need 0 <= merge_below and split_above > 2 merge_below (finite), else splits and merges undo each other");
-        if (!(L.thin_fraction >= 0 && L.thin_fraction < 1)) bad(w + "thin_fraction must lie in [0, 1)");
-    }
-    if (!(params.b_radius > 0) || !std::isfinite(params.b_radius)) bad("b_radius must be finite and > 0 (default 12)");
-    if (params.max_iterations < 1) bad("max_iterations must be >= 1 (default 8)");
-    if (!(params.tolerance >= 0)) bad("tolerance must be >= 0 (default 0.01)");
-    if (params.max_candidates < 1) bad("max_candidates must be >= 1 (default 3000)");
-    if (params.search_samples < 4) bad("search_samples must be >= 4 (default 24)");
-    if (!(params.max_patch_growth > 0) || !std::isfinite(params.max_patch_growth))
-        bad("max_patch_growth must be finite and > 0 (default 16)");
-
-    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
-    if (nv0 == 0 || nf0 == 0) bad("the mesh is empty (" + std::to_string(nv0) + " vertices, " + std::to_string(nf0) + " faces); pass a triangle mesh");
-    IndexedMesh work;
-    work.vertices.resize(nv0);
-    work.faces.resize(nf0);
-    for (Index v = 0; v < nv0; ++v) work.vertices[v] = vertex_position(mesh, v);
-    for (Index f = 0; f < nf0; ++f) work.faces[f] = face_at(mesh, f);
-    try {
-        (void)HalfedgeMesh::from_faces(work.vertices, work.faces);
-    } catch (const invalid_input& e) {
-        throw invalid_input(fn + e.what() + " (a boundary that touches itself is a non-manifold vertex)");
-    }
-
-    std::vector<Vec3> new_pos;    // the patch, appended at the end
-    std::vector<Face> new_faces;
+/// The completion of complete_holes_example_based on its working copy `work` (the input's
+/// vertices and faces): no user type appears below the conversion, so a program compiles this
+/// body once whatever mesh types it completes. Appends the patch to new_pos / new_faces; a
+/// cancelled run returns Status::cancelled with both left to be discarded.
+inline CompletionResult complete_indexed(IndexedMesh& work, const CompletionParams& params, const std::string& fn,
+                                         std::vector<Vec3>& new_pos, std::vector<Face>& new_faces) {
+    const std::size_t nv0 = work.vertices.size(), nf0 = work.faces.size();
     CompletionResult out;
     detail::Progress progress(params.control);
     try {
@@ -1156,6 +1091,84 @@ CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& p
         c.status = Status::cancelled;
         return c;
     }
+    return out;
+}
+
+}  // namespace detail::completion
+
+/// @brief Fills holes of a triangle mesh with geometry that resembles the rest of the
+/// object (Kawai, Sato, Yokoya, "3D surface completion by minimizing energy based on
+/// similarity of local shape", TVRSJ 2009; docs/methods/example_completion.md).
+///
+/// The selected holes are closed by an initial patch (thin-plate fill or the paper's
+/// fan); then, per level of a coarse-to-fine schedule, three steps repeat until the
+/// energy E (eq. 1) converges: (i) each vertex p of Ω' (the patch and the vertices
+/// within A of it) finds the data vertex p̂ whose surface, aligned by the two quadric
+/// frames (eq. 3-7, mirrored frames too), is closest to p's neighbourhood A along the
+/// normal lines (SSD, eq. 2), testing the top_percent % of candidates by curvature
+/// likeness (eq. 9); (ii) every patch vertex moves at once along its normal to the
+/// weighted mean of where its normal line meets the surfaces its neighbours matched
+/// (eq. 16), weights 1 outside and 1/s^m inside the hole; (iii) patch edges are split or
+/// collapsed to keep the level's density. An iteration that would raise E is undone and
+/// ends the level, so E never rises within a level. Last, per hole, the patch's offset
+/// from the thin-plate fairing of the same patch is kept in the share λ that the copied
+/// shapes explain of the surroundings better than a quadric (blend_with_smooth).
+///
+/// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). The existing
+///         vertices and faces are untouched; new ones are appended. An IndexedMesh with
+///         normals receives normals for the new vertices.
+/// @param mesh   an oriented 2-manifold with boundary
+/// @param params hole selection, schedule, cancellation (CompletionParams)
+/// @throws invalid_input (mesh untouched) naming the element when the mesh is empty,
+///         not an oriented manifold (including a boundary that touches itself: a
+///         non-manifold vertex), has NaN/Inf coordinates, a given hole is not a
+///         boundary loop, or a parameter is out of range.
+/// @return Status::ok (closed holes counted, loops that could not be triangulated in
+///         unfilled_holes); Status::cancelled: the mesh is untouched.
+template <TopologyMutableMesh M>
+CompletionResult complete_holes_example_based(M& mesh, const CompletionParams& params = {}) {
+    using namespace detail::completion;
+    const std::string fn = "kintsugi::complete_holes_example_based: ";
+    auto bad = [&](const std::string& what) { throw invalid_input(fn + what); };
+    if (!(params.max_hole_size > 0)) bad("max_hole_size must be > 0 (fraction of the diagonal, default 0.25)");
+    if (!(params.outer_border_extent >= 0)) bad("outer_border_extent must be >= 0 (default 0.75)");
+    if (!(params.s > 1) || !std::isfinite(params.s)) bad("s = " + std::to_string(params.s) + " must be finite and > 1 (default 2)");
+    if (!(params.top_percent > 0 && params.top_percent <= 100))
+        bad("top_percent = " + std::to_string(params.top_percent) + " must lie in (0, 100] (default 10)");
+    if (params.levels.empty()) bad("levels is empty; give at least one level (default: Table 1's three)");
+    for (std::size_t i = 0; i < params.levels.size(); ++i) {
+        const auto& L = params.levels[i];
+        const std::string w = "level " + std::to_string(i + 1) + ": ";
+        if (!(L.a_radius > 0) || !std::isfinite(L.a_radius)) bad(w + "a_radius must be finite and > 0");
+        if (!(L.merge_below >= 0) || !(L.split_above > 2 * L.merge_below) || !std::isfinite(L.split_above))
+            bad(w + "need 0 <= merge_below and split_above > 2 merge_below (finite), else splits and merges undo each other");
+        if (!(L.thin_fraction >= 0 && L.thin_fraction < 1)) bad(w + "thin_fraction must lie in [0, 1)");
+    }
+    if (!(params.b_radius > 0) || !std::isfinite(params.b_radius)) bad("b_radius must be finite and > 0 (default 12)");
+    if (params.max_iterations < 1) bad("max_iterations must be >= 1 (default 8)");
+    if (!(params.tolerance >= 0)) bad("tolerance must be >= 0 (default 0.01)");
+    if (params.max_candidates < 1) bad("max_candidates must be >= 1 (default 3000)");
+    if (params.search_samples < 4) bad("search_samples must be >= 4 (default 24)");
+    if (!(params.max_patch_growth > 0) || !std::isfinite(params.max_patch_growth))
+        bad("max_patch_growth must be finite and > 0 (default 16)");
+
+    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
+    if (nv0 == 0 || nf0 == 0) bad("the mesh is empty (" + std::to_string(nv0) + " vertices, " + std::to_string(nf0) + " faces); pass a triangle mesh");
+    IndexedMesh work;
+    work.vertices.resize(nv0);
+    work.faces.resize(nf0);
+    for (Index v = 0; v < nv0; ++v) work.vertices[v] = vertex_position(mesh, v);
+    for (Index f = 0; f < nf0; ++f) work.faces[f] = face_at(mesh, f);
+    try {
+        (void)HalfedgeMesh::from_faces(work.vertices, work.faces);
+    } catch (const invalid_input& e) {
+        throw invalid_input(fn + e.what() + " (a boundary that touches itself is a non-manifold vertex)");
+    }
+
+    std::vector<Vec3> new_pos;    // the patch, appended at the end
+    std::vector<Face> new_faces;
+    CompletionResult out = detail::completion::complete_indexed(work, params, fn, new_pos, new_faces);
+    if (out.status == Status::cancelled) return out;
     detail::append_patch(mesh, new_pos, new_faces);
     out.new_vertices = new_pos.size();
     out.new_faces = new_faces.size();
