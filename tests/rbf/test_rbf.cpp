@@ -21,7 +21,6 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
-#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -180,64 +179,6 @@ TEST_CASE("RBFOctreeField: the blend removes the seams of the paper's per-cell e
     CHECK(bg * 10 <= sg);
     // Same fit: equal at the centres.
     for (std::size_t i = 0; i < pts.size(); i += 97) CHECK(std::abs(single(pts[i]) - res.field(pts[i])) < 1e-9);
-}
-
-TEST_CASE("rbf_solve_cell: the null-space solve satisfies the whole saddle system, also in a reused workspace") {
-    // Cells as the octree makes them (points on a curved sheet and their offsets ±d, in
-    // normalised coordinates). Every row of [A P; Pᵀ 0][w; a] = [v; 0] is checked; the
-    // small cell is solved again after a larger one grew the per-thread workspace.
-    auto cell = [](int m, unsigned seed, V& u, std::vector<double>& v) {
-        std::mt19937 rng(seed);
-        std::uniform_real_distribution<double> U(-1, 1);
-        while (static_cast<int>(u.size()) < m) {
-            const double x = U(rng), y = U(rng);
-            const double d = 0.05 * static_cast<double>(static_cast<int>(u.size() % 3) - 1);
-            u.emplace_back(x, y, 0.3 * std::sin(2 * x) * std::cos(y) + d);
-            v.push_back(d);
-        }
-    };
-    auto residual = [](const V& u, const std::vector<double>& v, const std::vector<double>& w,
-                       const Eigen::Vector4d& a) {
-        double worst = 0;
-        Eigen::Vector4d moments = Eigen::Vector4d::Zero();
-        for (std::size_t i = 0; i < u.size(); ++i) {
-            double f = a[0] + a[1] * u[i].x() + a[2] * u[i].y() + a[3] * u[i].z();
-            for (std::size_t j = 0; j < u.size(); ++j) {
-                const double r = (u[i] - u[j]).norm();
-                f += w[j] * r * r * r;
-            }
-            worst = std::max(worst, std::abs(f - v[i]));
-            moments += w[i] * Eigen::Vector4d(1, u[i].x(), u[i].y(), u[i].z());
-        }
-        return std::max(worst, moments.cwiseAbs().maxCoeff());
-    };
-    V us, ub;
-    std::vector<double> vs, vb, w1, w2, wb;
-    Eigen::Vector4d a1, a2, ab;
-    cell(40, 1, us, vs);
-    cell(250, 2, ub, vb);
-    const auto i1 = ks::detail::rbf_solve_cell(us, vs, 0, w1, a1);
-    const auto ib = ks::detail::rbf_solve_cell(ub, vb, 0, wb, ab);
-    const auto i2 = ks::detail::rbf_solve_cell(us, vs, 0, w2, a2);
-    CHECK_FALSE(i1.ill_conditioned);
-    CHECK_FALSE(ib.ill_conditioned);
-    CHECK_FALSE(i2.ill_conditioned);
-    CHECK(residual(us, vs, w1, a1) <= 1e-10);
-    CHECK(residual(ub, vb, wb, ab) <= 1e-10);
-    CHECK(w1 == w2);  // bit for bit: the reused workspace leaves no trace
-    CHECK(a1 == a2);
-    // Coplanar centres (P rank-deficient): counted, and a finite fit.
-    V flat;
-    std::vector<double> vf, wf;
-    Eigen::Vector4d af;
-    for (int i = 0; i < 30; ++i) {
-        flat.emplace_back(std::cos(i * 0.7) * 0.9, std::sin(i * 1.3) * 0.9, 0.0);
-        vf.push_back(0.01 * i);
-    }
-    CHECK(ks::detail::rbf_solve_cell(flat, vf, 0, wf, af).ill_conditioned);
-    CHECK(wf.size() == flat.size());
-    CHECK(std::all_of(wf.begin(), wf.end(), [](double x) { return std::isfinite(x); }));
-    CHECK(af.allFinite());
 }
 
 TEST_CASE("RBFOctreeField: duplicates and near-duplicates are merged, never a NaN") {
