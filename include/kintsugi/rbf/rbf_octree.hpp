@@ -902,8 +902,10 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
                     std::sort(ids.begin(), ids.end());
                 }
                 const Scalar h = alpha * nodes[leaf.node].side / 2;
-                std::vector<Vec3> u(ids.size());
-                std::vector<Scalar> v(ids.size());
+                thread_local std::vector<Vec3> u;  // reused: no allocation per cell
+                thread_local std::vector<Scalar> v;
+                u.resize(ids.size());
+                v.resize(ids.size());
                 for (std::size_t k = 0; k < ids.size(); ++k) {
                     u[k] = (C[ids[k]] - c) / h;
                     v[k] = value[ids[k]] / h;
