@@ -79,10 +79,10 @@ else
 fi
 
 if [ -n "$release_tests" ]; then
-  if wait "$release_tests"; then
-    cat build/release/ctest.log
-  else
-    cat build/release/ctest.log
+  release_status=0
+  wait "$release_tests" || release_status=$?
+  cat build/release/ctest.log
+  if [ $release_status -ne 0 ]; then
     echo "== optimised suite: a test failed (above)" >&2
     exit 1
   fi
