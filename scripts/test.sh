@@ -50,6 +50,17 @@ build_suite build/release -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_BENCH=OFF 
 # test, whose one long step (the README's snippets, one translation unit) would leave a core
 # idle for two minutes: it runs beside the clang build below, and its log is shown after it.
 release_tests=
+# Waits for the background optimised suite and prints its log; returns its status.
+finish_release_tests() {
+  [ -n "$release_tests" ] || return 0
+  local status=0
+  wait "$release_tests" || status=$?
+  release_tests=
+  cat build/release/ctest.log
+  return $status
+}
+# If a later step fails, the optimised suite still finishes and its log is shown.
+trap 'rc=$?; if [ -n "$release_tests" ]; then echo "== a step failed; the optimised suite runs to its end" >&2; finish_release_tests || true; fi; exit $rc' EXIT
 if [ $sanitize -eq 1 ]; then
   test_suite build/release >build/release/ctest.log 2>&1 &
   release_tests=$!
@@ -78,14 +89,9 @@ else
   echo "== clang++ not found: header check and fuzzing skipped (scripts/setup.sh installs it)" >&2
 fi
 
-if [ -n "$release_tests" ]; then
-  release_status=0
-  wait "$release_tests" || release_status=$?
-  cat build/release/ctest.log
-  if [ $release_status -ne 0 ]; then
-    echo "== optimised suite: a test failed (above)" >&2
-    exit 1
-  fi
+if ! finish_release_tests; then
+  echo "== optimised suite: a test failed (above)" >&2
+  exit 1
 fi
 
 if [ $sanitize -eq 1 ]; then
