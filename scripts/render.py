@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Renders meshes and point clouds to PNG for the README (numpy z-buffer, no GPU).
 
-usage: render.py OUT.png INPUT[:color] [INPUT ...] [--size W H] [--view azimuth elevation]
-Several inputs are drawn side by side, each framed on its own. A mesh is drawn
+usage: render.py OUT.png [--size W H] [--view azimuth elevation] INPUT [INPUT ...]
+                 [--row [--view azimuth elevation] INPUT ...]
+Several inputs are drawn side by side, each framed on its own; --row starts a new row
+below (its own --view, else the previous one). A mesh is drawn
 with Lambert shading; a point cloud (or a mesh file without faces) as dots.
 Reads PLY (ascii/binary), OFF and XYZ. Needs only numpy (Debian python3-numpy).
 """
@@ -175,27 +177,35 @@ def write_png(path, img):
 
 
 def main(argv):
-    out, inputs, W, H, az, el = None, [], 400, 400, 0.0, 0.0
+    out, W, H, view = None, 400, 400, (0.0, 0.0)
+    rows = [[view, []]]
     i = 0
     while i < len(argv):
         if argv[i] == '--size':
             W, H = int(argv[i + 1]), int(argv[i + 2]); i += 3
         elif argv[i] == '--view':
-            az, el = float(argv[i + 1]), float(argv[i + 2]); i += 3
+            view = (float(argv[i + 1]), float(argv[i + 2])); rows[-1][0] = view; i += 3
+        elif argv[i] == '--row':
+            rows.append([view, []]); i += 1
         elif out is None:
             out = argv[i]; i += 1
         else:
-            inputs.append(argv[i]); i += 1
-    if out is None or not inputs:
+            rows[-1][1].append(argv[i]); i += 1
+    rows = [r for r in rows if r[1]]
+    if out is None or not rows:
         print(__doc__); return 2
     palette = [(200, 170, 110), (120, 160, 210), (150, 200, 140), (210, 130, 130)]
-    R = rotation(az, el)
-    panels = []
-    for n, spec in enumerate(inputs):
-        path = spec.split(':')[0]
-        V, F = read_any(path)
-        panels.append(render(V, F, W, H, R, palette[n % len(palette)]))
-    write_png(out, np.concatenate(panels, axis=1))
+    width = max(len(r[1]) for r in rows)
+    strips = []
+    for (az, el), inputs in rows:
+        R = rotation(az, el)
+        panels = []
+        for n, spec in enumerate(inputs):
+            V, F = read_any(spec.split(':')[0])
+            panels.append(render(V, F, W, H, R, palette[n % len(palette)]))
+        panels += [np.full((H, W, 3), 255.0)] * (width - len(panels))
+        strips.append(np.concatenate(panels, axis=1))
+    write_png(out, np.concatenate(strips, axis=0))
     return 0
 
 
