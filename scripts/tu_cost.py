@@ -5,7 +5,7 @@ Usage: scripts/tu_cost.py BUILD_DIR [--filter SUBSTRING] [--limit-s 60] [--limit
 
 Reads BUILD_DIR/compile_commands.json (CMAKE_EXPORT_COMPILE_COMMANDS is on for the main
 project), recompiles each TU once without ccache into /dev/null-like scratch objects, one
-at a time, under /usr/bin/time, and prints seconds and peak resident memory, largest
+at a time, under /usr/bin/time, and prints CPU seconds and peak resident memory, largest
 first. Exits 1 when a TU exceeds the limits (issue 11: one public method header in one
 TU must compile in at most 60 s and 2 GB on the 2-core CI machine).
 """
@@ -32,11 +32,13 @@ with tempfile.TemporaryDirectory() as tmp:
         if "-o" in args:
             args[args.index("-o") + 1] = os.path.join(tmp, f"tu{i}.o")
         args = [x for x in args if not x.startswith("-MD") and x not in ("-MF",)]
-        cmd = ["/usr/bin/time", "-f", "%e %M"] + args
+        # CPU seconds (user + system): a compile is one thread, so this equals the wall
+        # time on an idle machine and stays comparable when other jobs share the cores.
+        cmd = ["/usr/bin/time", "-f", "%U %S %M"] + args
         p = subprocess.run(cmd, cwd=e["directory"], capture_output=True, text=True)
-        last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "0 0"
-        m = re.match(r"([\d.]+) (\d+)", last)
-        sec, kb = (float(m.group(1)), int(m.group(2))) if m else (0.0, 0)
+        last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "0 0 0"
+        m = re.match(r"([\d.]+) ([\d.]+) (\d+)", last)
+        sec, kb = (float(m.group(1)) + float(m.group(2)), int(m.group(3))) if m else (0.0, 0)
         rows.append((sec, kb / 1024.0, os.path.relpath(src, os.path.dirname(os.path.abspath(a.build_dir + "/../..")))))
         print(f"{sec:7.1f} s {kb/1024:7.0f} MB  {rows[-1][2]}", flush=True)
 
