@@ -279,18 +279,21 @@ TEST_CASE("RBFOctreeField: a cluster of copies is merged in linear time, also at
     sphere_points(3000, 13, pts, nrm);
     const double diag = diagonal(pts);
     const ks::Vec3 p0 = pts[7], n0 = nrm[7];
-    // 20,000 copies of one point, then 500 near-copies 1e-9 apart along a line (the
-    // pairwise merge of the first would visit 4e8 pairs; without a merge at 0 the
-    // copies would form one dense cell of identical centres).
+    // 20,000 copies of one point, then 3,000 near-copies spread over 1e-9 along a line
+    // (the pairwise merge of the first would visit 4e8 pairs; without a merge at 0 the
+    // copies would form one dense cell of identical centres). Kept at merge_distance 0,
+    // the near-copies and their offsets (9,000 centres) cannot be split by the 20 levels
+    // of the octree: before the cap on such cells their dense fallback solve, cubic in
+    // the cell's size, took 21 s CPU at 1,000 near-copies (Release) and over 20 minutes
+    // at 2,000 under ASan.
     for (int i = 0; i < 20000; ++i) {
         pts.push_back(p0);
         nrm.push_back(i % 2 ? n0 : ks::Vec3(-n0));
     }
     const ks::Vec3 p1 = pts[11];
-    // (500, not more: kept at merge_distance 0 they share one cell, whose dense fallback
-    // solve is cubic in its size; 2,000 took over 20 minutes under ASan.)
-    for (int i = 1; i <= 500; ++i) {
-        pts.push_back(p1 + ks::Vec3(1e-9 * i / 500, 0, 0));
+    constexpr int near_copies = 3000;
+    for (int i = 1; i <= near_copies; ++i) {
+        pts.push_back(p1 + ks::Vec3(1e-9 * i / near_copies, 0, 0));
         nrm.push_back(nrm[11]);
     }
     for (const double md : {1e-6, 0.0}) {
@@ -298,14 +301,29 @@ TEST_CASE("RBFOctreeField: a cluster of copies is merged in linear time, also at
         const auto res = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 60, .merge_distance = md});
         REQUIRE(res.status == ks::Status::ok);
         // at 0 only the exact copies go
-        CHECK(res.stats.merged_points == (md > 0 ? 20500u : 20000u));
+        CHECK(res.stats.merged_points == (md > 0 ? 20000u + near_copies : 20000u));
+        // No system is larger than n_max: at 0 the cells holding the near-copies are
+        // capped (each drops all but at most 60 of its ~9,000 centres), at 1e-6 none is.
+        CHECK(res.stats.max_points_per_cell <= 60);
         if (md > 0) {
             CHECK(res.stats.ill_conditioned_cells == 0);
-            CHECK(res.stats.max_points_per_cell <= 60 + 20);
+            CHECK(res.stats.capped_cells == 0);
+            CHECK(res.stats.capped_centres == 0);
+        } else {
+            CHECK(res.stats.capped_cells >= 1);
+            CHECK(res.stats.capped_centres >= 3 * near_copies - 60);
+            CHECK(res.stats.depth == 20);
+            // The near-copies lie within 1e-9 of points the field interpolates.
+            for (std::size_t i = 23000; i < pts.size(); i += 97) {
+                const double f = res.field(pts[i]);
+                CHECK(std::isfinite(f));
+                CHECK(std::abs(f) <= 1e-6 * diag);
+                CHECK(res.field.gradient(pts[i]).allFinite());
+            }
         }
         CHECK(std::abs(res.field(p0)) <= 1e-6 * diag);
         for (std::size_t i = 0; i < 3000; i += 7) CHECK(std::abs(res.field(pts[i])) <= 1e-6 * diag);
-        CHECK(std::isfinite(res.field(p1)));
+        CHECK(std::abs(res.field(p1)) <= 1e-6 * diag);
     }
     // Cancellation during the duplicate search.
     ks::RBFOctreeParams prm{.n_max = 60};

@@ -102,6 +102,11 @@ struct RBFOctreeStats {
     std::size_t padded_cells = 0;    ///< live cells with < 20 centres, padded with the nearest ones
     std::size_t ill_conditioned_cells = 0; ///< systems that needed jitter or least squares
     int depth = 0;                   ///< deepest leaf level below the roots
+    /// Live cells at the depth limit (20 levels) with more than n_max centres (a cluster
+    /// of near-duplicates kept by a small merge_distance), solved on an evenly spread
+    /// subset of at most n_max of them so that no cell costs more than n_max³.
+    std::size_t capped_cells = 0;
+    std::size_t capped_centres = 0;  ///< centres those cells left out of their systems
 };
 
 /// One leaf of the octree (caller's coordinates).
@@ -878,8 +883,37 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
         for (std::size_t l = 0; l < nl && !any_padded; ++l)
             any_padded = data->leaves[l].live && leaf_centres[l].size() < min_centres;
         const KdTree centre_tree = any_padded ? KdTree(C) : KdTree();
+        // A cell splits while it has more than n_max centres, so only a cell at the depth
+        // limit has more: a cluster of near-duplicates that merge_distance kept (2,000
+        // copies 1e-9 apart at merge_distance 0: one cell of 6,000 centres, whose dense
+        // fallback solve is cubic in its size). Such a cell keeps an evenly spread subset
+        // of its centres in index order, whole groups of a point and its offsets (its
+        // value constraints stay consistent), at most cap of them; the field still
+        // interpolates the kept ones, and the others lie within the cell's 2^-20 of the
+        // root from them.
+        const std::size_t cap = std::max(params.n_max, min_centres);
+        auto cap_centres = [&](std::vector<std::uint32_t>& ids) {
+            auto owner = [&](std::uint32_t c) {  // the point of an offset: at most 2 before it
+                while (c > 0 && !on_surface[c]) --c;
+                return c;
+            };
+            thread_local std::vector<std::size_t> group;  // start of each run of one owner in ids
+            group.clear();
+            for (std::size_t k = 0; k < ids.size(); ++k)
+                if (k == 0 || owner(ids[k]) != owner(ids[k - 1])) group.push_back(k);
+            const std::size_t ng = group.size();
+            const std::size_t take = std::min(ng, cap / 3);  // a group has at most 3 centres
+            std::size_t out = 0;
+            for (std::size_t t = 0; t < take; ++t) {
+                const std::size_t gi = t * ng / take;
+                const std::size_t e = gi + 1 < ng ? group[gi + 1] : ids.size();
+                for (std::size_t k = group[gi]; k < e; ++k) ids[out++] = ids[k];
+            }
+            ids.resize(out);
+        };
         std::vector<std::vector<Scalar>> leaf_w(nl);
         std::vector<std::uint8_t> bad(nl, 0), padded(nl, 0);
+        std::vector<std::size_t> capped(nl, 0);
         const std::size_t block = 256;
         for (std::size_t b0 = 0; b0 < nl; b0 += block) {
             const std::size_t b1 = std::min(nl, b0 + block);
@@ -892,6 +926,11 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
                 }
                 auto& ids = leaf_centres[l];
                 const Vec3 c = data->node_center(nodes[leaf.node]);
+                if (ids.size() > cap) {
+                    capped[l] = ids.size();
+                    cap_centres(ids);
+                    capped[l] -= ids.size();
+                }
                 if (ids.size() < min_centres) {
                     padded[l] = 1;
                     thread_local std::vector<Neighbor> nb;
@@ -925,6 +964,8 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
             ++res.stats.live_cells;
             res.stats.ill_conditioned_cells += bad[l];
             res.stats.padded_cells += padded[l];
+            res.stats.capped_cells += capped[l] > 0 ? 1 : 0;
+            res.stats.capped_centres += capped[l];
             res.stats.max_points_per_cell = std::max(res.stats.max_points_per_cell, leaf_centres[l].size());
             leaf.begin = data->ids.size();
             data->ids.insert(data->ids.end(), leaf_centres[l].begin(), leaf_centres[l].end());
