@@ -133,6 +133,125 @@ TEST_CASE("PartitionOfUnity: a partition of unity — constants and a shared pla
     }
 }
 
+TEST_CASE("ball_weight and box_weight: values, support, C¹ gradients; PartitionOfUnity blends with ball_weight") {
+    const ks::Vec3 c(0.3, -0.2, 0.5);
+    // Ball: b2(1.5 d / r), r = 0.4.
+    CHECK(ks::ball_weight(c, c, 0.4) == 0.75);
+    CHECK(ks::ball_weight(c + ks::Vec3(0.4 / 3, 0, 0), c, 0.4) == doctest::Approx(0.5).epsilon(1e-15));
+    CHECK(ks::ball_weight(c + ks::Vec3(0, 0.4, 0), c, 0.4) == 0);
+    CHECK(ks::ball_weight(c + ks::Vec3(0, 0.5, 0), c, 0.4) == 0);
+    // Box: Π (1 - t²)², half side 0.4.
+    CHECK(ks::box_weight(c, c, 0.4) == 1);
+    CHECK(ks::box_weight(c + ks::Vec3(0.2, 0, 0), c, 0.4) == doctest::Approx(0.5625).epsilon(1e-15));
+    CHECK(ks::box_weight(c + ks::Vec3(0.2, -0.2, 0.2), c, 0.4) == doctest::Approx(0.5625 * 0.5625 * 0.5625).epsilon(1e-14));
+    ks::Vec3 g;
+    CHECK(ks::box_weight(c + ks::Vec3(0, 0.4, 0), c, 0.4, &g) == 0);  // on a face
+    CHECK(g == ks::Vec3::Zero());
+    CHECK(ks::box_weight(c + ks::Vec3(0.39, 0.39, 0.39), c, 0.4) > 0);  // a corner of the box: inside
+    CHECK(ks::ball_weight(c + ks::Vec3(0.39, 0.39, 0.39), c, 0.4) == 0);  // outside the ball
+    // Gradients against central differences, and C¹ at the border (the gradient tends to 0).
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> u(-0.45, 0.45);
+    const double h = 1e-7;
+    for (int q = 0; q < 300; ++q) {
+        const ks::Vec3 x = c + ks::Vec3(u(rng), u(rng), u(rng));
+        for (int kind = 0; kind < 2; ++kind) {
+            auto w = [&](const ks::Vec3& y, ks::Vec3* gr) {
+                return kind == 0 ? ks::ball_weight(y, c, 0.4, gr) : ks::box_weight(y, c, 0.4, gr);
+            };
+            ks::Vec3 gr;
+            const double v = w(x, &gr);
+            CHECK(v == w(x, nullptr));
+            for (int k = 0; k < 3; ++k) {
+                ks::Vec3 e = ks::Vec3::Zero();
+                e[k] = h;
+                CHECK(gr[k] == doctest::Approx((w(x + e, nullptr) - w(x - e, nullptr)) / (2 * h)).epsilon(1e-5).scale(1));
+            }
+        }
+    }
+    ks::Vec3 g_in;
+    (void)ks::box_weight(c + ks::Vec3(0.4 * (1 - 1e-6), 0.1, 0), c, 0.4, &g_in);
+    CHECK(g_in.norm() < 1e-4);
+    (void)ks::ball_weight(c + ks::Vec3(0.4 * (1 - 1e-6), 0, 0), c, 0.4, &g_in);
+    CHECK(g_in.norm() < 1e-4);
+    // PartitionOfUnity's blend is PUAccumulator over ball_weight in ball order, to the bit.
+    const Setup s = random_balls(300, 5);
+    const ks::PartitionOfUnity pu(s.balls, ks::Vec3::Constant(-0.5), 2.0);
+    auto local = [&](std::size_t i, const ks::Vec3& x, ks::Vec3* gl) {
+        if (gl) *gl = s.normal[i];
+        return s.normal[i].dot(x - s.origin[i]);
+    };
+    std::uniform_real_distribution<double> v(-0.5, 1.5);
+    int covered = 0;
+    for (int q = 0; q < 1000; ++q) {
+        const ks::Vec3 x(v(rng), v(rng), v(rng));
+        ks::PUAccumulator acc(true);
+        for (std::size_t i = 0; i < s.balls.size(); ++i) {
+            ks::Vec3 dw, dg;
+            const double w = ks::ball_weight(x, s.balls[i].center, s.balls[i].radius, &dw);
+            if (w == 0) continue;
+            const double gi = local(i, x, &dg);
+            acc.add(w, dw, gi, dg);
+            CHECK(pu.weight(i, x) == w);
+        }
+        ks::Vec3 gp;
+        const double f = pu.blend(x, local, nullptr, &gp);
+        CHECK(acc.covered() == !std::isnan(f));
+        if (!acc.covered()) continue;
+        ++covered;
+        CHECK(f == acc.value());
+        CHECK(gp == acc.gradient());
+    }
+    CHECK(covered > 300);
+}
+
+TEST_CASE("PUAccumulator over box_weight: overlapping cubes of a tiling reproduce constants and planes; C¹ blend") {
+    // Cubes of side 0.25 tiling [0, 1]³, each support its cube enlarged by α = 1.35 (the
+    // octree RBF's default overlap); brute force over all 64.
+    const double side = 0.25, half = 1.35 * side / 2;
+    std::vector<ks::Vec3> centre;
+    for (int k = 0; k < 4; ++k)
+        for (int j = 0; j < 4; ++j)
+            for (int i = 0; i < 4; ++i) centre.emplace_back((i + 0.5) * side, (j + 0.5) * side, (k + 0.5) * side);
+    const ks::Vec3 n = ks::Vec3(2, -1, 2).normalized();
+    // Distinct linear local functions: the blend is C¹, its gradient the derivative of its value.
+    auto blend = [&](const ks::Vec3& x, ks::Vec3* grad, int kind) {
+        ks::PUAccumulator acc(grad != nullptr);
+        for (std::size_t c = 0; c < centre.size(); ++c) {
+            ks::Vec3 dw;
+            const double w = ks::box_weight(x, centre[c], half, grad ? &dw : nullptr);
+            if (w == 0) continue;
+            const ks::Vec3 a = kind == 2 ? ks::Vec3(std::sin(double(c)), std::cos(3.0 * c), 0.5) : n;
+            const double g = kind == 0 ? 2.5 : a.dot(x) - 0.1 * (kind == 2 ? double(c % 5) : 1.0);
+            if (grad) acc.add(w, dw, g, kind == 0 ? ks::Vec3::Zero() : a);
+            else acc.add(w, g);
+        }
+        if (!acc.covered()) return std::numeric_limits<double>::quiet_NaN();
+        if (grad) *grad = acc.gradient();
+        return acc.value();
+    };
+    std::mt19937_64 rng(6);
+    std::uniform_real_distribution<double> u(0, 1);
+    const double h = 1e-7;
+    for (int q = 0; q < 500; ++q) {
+        const ks::Vec3 x(u(rng), u(rng), u(rng));  // every point of the tiling is covered
+        ks::Vec3 g;
+        CHECK(blend(x, &g, 0) == doctest::Approx(2.5).epsilon(1e-14));
+        CHECK(g.norm() < 1e-12);
+        CHECK(blend(x, &g, 1) == doctest::Approx(n.dot(x) - 0.1).epsilon(1e-12).scale(1));
+        CHECK((g - n).norm() < 1e-9);
+        const double f = blend(x, &g, 2);
+        CHECK(f == blend(x, nullptr, 2));
+        for (int k = 0; k < 3; ++k) {
+            ks::Vec3 e = ks::Vec3::Zero();
+            e[k] = h;
+            CHECK(g[k] == doctest::Approx((blend(x + e, nullptr, 2) - blend(x - e, nullptr, 2)) / (2 * h)).epsilon(1e-5).scale(1));
+        }
+    }
+    // Far from every cube: nothing covers.
+    CHECK(std::isnan(blend(ks::Vec3(2, 2, 2), nullptr, 1)));
+}
+
 TEST_CASE("PartitionOfUnity: bad input throws invalid_input") {
     const ks::Vec3 lo = ks::Vec3::Zero();
     CHECK_THROWS_WITH_AS(ks::PartitionOfUnity({}, lo, 1.0), doctest::Contains("no ball"), ks::invalid_input);

@@ -3,10 +3,18 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 #pragma once
 /// @file partition_of_unity.hpp
-/// @brief A partition-of-unity blend of local functions over balls: the weight
-/// w_i(x) = b2(1.5 |x - c_i| / r_i) of Nagai, Ohtake, Suzuki, "Outlier robust implicit
-/// surface reconstruction using graph-cut" (IPSJ Journal 2011, eq. 1 and 5), and a
-/// uniform grid of the balls so that a query visits only the balls near it.
+/// @brief Partition-of-unity blends of local functions, f = Σ w_i g_i / Σ w_i, shared by
+/// the methods that blend local fits:
+/// - PUAccumulator: the blend itself, f and ∇f = (Σ(∇w_i g_i + w_i ∇g_i) Σw - Σw_i g_i Σ∇w_i) / (Σw)²,
+///   from the weights and local functions the caller visits;
+/// - the weights, C¹ and zero on the border of their support: ball_weight, the b2 weight
+///   w(x) = b2(1.5 |x - c| / r) of Nagai, Ohtake, Suzuki, "Outlier robust implicit surface
+///   reconstruction using graph-cut" (IPSJ Journal 2011, eq. 1 and 5), and box_weight,
+///   Π_k (1 - t_k²)² over a cube (t_k = |x_k - c_k| / half side);
+/// - PartitionOfUnity: balls indexed by a uniform grid, so that a query visits only the
+///   balls near it, blended with ball_weight and PUAccumulator (PUField,
+///   reconstruct/pu_field.hpp). The octree RBF (rbf/rbf_octree.hpp) blends its cells'
+///   overlap boxes with box_weight and PUAccumulator, found by descending its octree.
 ///
 /// @code
 /// #include <kintsugi/field/partition_of_unity.hpp>
@@ -20,7 +28,18 @@
 /// @endcode
 ///
 /// Used by PUField (reconstruct/pu_field.hpp, linear local functions); any local
-/// approximant (quadrics, RBF patches of octree cells) blends the same way.
+/// approximant (quadrics, RBF patches of octree cells) blends the same way. With
+/// supports found by your own index (an octree of boxes, say):
+///
+/// @code
+/// kintsugi::PUAccumulator acc(/*gradient=*/true);
+/// for (const Cell& c : cells_whose_box_holds(x)) {           // your own search
+///     kintsugi::Vec3 dw, dg;
+///     const double w = kintsugi::box_weight(x, c.center, c.half, &dw);
+///     acc.add(w, dw, c.local(x, &dg), dg);
+/// }
+/// if (acc.covered()) { double f = acc.value(); kintsugi::Vec3 g = acc.gradient(); }
+/// @endcode
 
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
@@ -50,6 +69,97 @@ namespace kintsugi {
     if (t >= Scalar(1.5)) return 0;
     if (t >= Scalar(0.5)) return t - Scalar(1.5);
     return -2 * t;
+}
+
+/// @brief Accumulates one partition-of-unity blend at a point x: add() each support i
+/// whose weight w_i(x) is positive, with its local function's value g_i(x); then
+/// f(x) = Σ w_i g_i / Σ w_i and, when constructed with gradient = true and given ∇w_i
+/// and ∇g_i, ∇f(x) = (Σ(∇w_i g_i + w_i ∇g_i) Σw - Σ w_i g_i Σ∇w_i) / (Σw)². The sums run
+/// in the order of the add() calls (the result's rounding depends on that order only).
+class PUAccumulator {
+public:
+    /// gradient: whether the gradient sums are kept (the 4-argument add()).
+    explicit PUAccumulator(bool gradient = false) : gradient_(gradient) {}
+    /// Adds w g (value only).
+    void add(Scalar w, Scalar g) {
+        W_ += w;
+        F_ += w * g;
+    }
+    /// Adds w g with ∇w and ∇g (the gradient sums only when constructed with gradient = true).
+    void add(Scalar w, const Vec3& dw, Scalar g, const Vec3& dg) {
+        W_ += w;
+        F_ += w * g;
+        if (gradient_) {
+            dW_ += dw;
+            dF_ += dw * g + w * dg;
+        }
+    }
+    /// Whether some positive weight was added (Σw > 0); f is undefined otherwise.
+    [[nodiscard]] bool covered() const { return W_ > 0; }
+    /// Σ w_i g_i / Σ w_i. @pre covered()
+    [[nodiscard]] Scalar value() const { return F_ / W_; }
+    /// ∇f. @pre covered() and constructed with gradient = true
+    [[nodiscard]] Vec3 gradient() const { return (dF_ * W_ - F_ * dW_) / (W_ * W_); }
+    /// Σ w_i.
+    [[nodiscard]] Scalar weight_sum() const { return W_; }
+
+private:
+    bool gradient_ = false;
+    Scalar W_ = 0, F_ = 0;
+    Vec3 dW_ = Vec3::Zero(), dF_ = Vec3::Zero();
+};
+
+namespace detail {
+/// a b2(1.5 d / r) and, into grad when not null, its gradient, at diff = x - c with
+/// d = |diff| (inv_r = 1 / r). Shared by ball_weight and PartitionOfUnity::blend, which
+/// has d and 1 / r at hand.
+[[nodiscard]] inline Scalar b2_ball_weight(const Vec3& diff, Scalar d, Scalar inv_r, Scalar a, Vec3* grad) {
+    const Scalar t = Scalar(1.5) * d * inv_r;
+    if (grad) *grad = d > 0 ? Vec3(a * b2_weight_derivative(t) * Scalar(1.5) * inv_r / d * diff) : Vec3::Zero();
+    return a * b2_weight(t);
+}
+}  // namespace detail
+
+/// @brief The b2 weight of the ball (center, radius): b2(1.5 |x - center| / radius),
+/// 3/4 at the centre, positive on the open ball, C¹, 0 from its sphere on (Nagai et al.
+/// eq. 5). PUField's weight (through PartitionOfUnity).
+/// @param radius > 0 (not checked here; PartitionOfUnity checks its balls).
+/// @param gradient null, or receives ∇w(x) (0 outside the ball and at its centre).
+[[nodiscard]] inline Scalar ball_weight(const Vec3& x, const Vec3& center, Scalar radius, Vec3* gradient = nullptr) {
+    const Vec3 diff = x - center;
+    const Scalar d2 = diff.squaredNorm();
+    if (!(d2 < radius * radius)) {
+        if (gradient) *gradient = Vec3::Zero();
+        return 0;
+    }
+    return detail::b2_ball_weight(diff, std::sqrt(d2), 1 / radius, 1, gradient);
+}
+
+/// @brief The weight of the open cube with centre `center` and half side `half`:
+/// Π_k (1 - t_k²)², t_k = |x_k - center_k| / half. 1 at the centre, positive inside,
+/// C¹, 0 with its gradient on the cube's faces and outside. The octree RBF's weight
+/// over the overlap boxes of its cells (rbf/rbf_octree.hpp): unlike a ball's, the cube
+/// weights of a tiling cover every point of it without gaps at the corners for any
+/// overlap factor above 1.
+/// @param half > 0 (not checked here).
+/// @param gradient null, or receives ∇w(x) (0 outside the cube).
+[[nodiscard]] inline Scalar box_weight(const Vec3& x, const Vec3& center, Scalar half, Vec3* gradient = nullptr) {
+    Scalar t[3];
+    for (int k = 0; k < 3; ++k) {
+        t[k] = std::abs(x[k] - center[k]) / half;
+        if (!(t[k] < 1)) {
+            if (gradient) *gradient = Vec3::Zero();
+            return 0;
+        }
+    }
+    Vec3 s, ds;
+    for (int k = 0; k < 3; ++k) {
+        const Scalar q = 1 - t[k] * t[k];
+        s[k] = q * q;
+        ds[k] = -4 * t[k] * q / half * (x[k] >= center[k] ? 1 : -1);
+    }
+    if (gradient) *gradient = Vec3(ds[0] * s[1] * s[2], s[0] * ds[1] * s[2], s[0] * s[1] * ds[2]);
+    return s.prod();
 }
 
 /// The support of one local function: the open ball (center, radius).
@@ -103,11 +213,12 @@ public:
     /// Number of (grid cell, ball) overlaps stored.
     [[nodiscard]] std::size_t overlaps() const { return cell_balls_.size(); }
 
-    /// w_i(x) of ball i (0 outside the ball).
+    /// w_i(x) of ball i (0 outside the ball): ball_weight(x, centre, radius).
     [[nodiscard]] Scalar weight(std::size_t i, const Vec3& x) const {
         const auto& s = balls_[i];
-        const Scalar d2 = (x - s.c).squaredNorm();
-        return d2 >= s.r2 ? Scalar(0) : b2_weight(Scalar(1.5) * std::sqrt(d2) * s.inv_r);
+        const Vec3 diff = x - s.c;
+        const Scalar d2 = diff.squaredNorm();
+        return d2 >= s.r2 ? Scalar(0) : detail::b2_ball_weight(diff, std::sqrt(d2), s.inv_r, 1, nullptr);
     }
 
     /// Calls visit(i) for every ball whose open ball contains x, in increasing i.
@@ -136,32 +247,23 @@ public:
         if (gradient) *gradient = Vec3::Constant(nan);
         const std::size_t cell = cell_of(x);
         if (cell == npos) return nan;
-        Scalar W = 0, F = 0;
-        Vec3 dW = Vec3::Zero(), dF = Vec3::Zero(), lg = Vec3::Zero();
+        PUAccumulator acc(gradient != nullptr);
+        Vec3 gw = Vec3::Zero(), lg = Vec3::Zero();
         const auto* ids = cell_balls_.data();
         for (std::size_t k = cell_offsets_[cell], e = cell_offsets_[cell + 1]; k < e; ++k) {
             const auto& s = balls_[ids[k]];
             const Vec3 diff = x - s.c;
             const Scalar d2 = diff.squaredNorm();
             if (d2 >= s.r2) continue;
-            const Scalar d = std::sqrt(d2);
-            const Scalar t = Scalar(1.5) * d * s.inv_r;
             const Scalar a = factors ? factors[ids[k]] : Scalar(1);
             if (a == 0) continue;
-            const Scalar w = a * b2_weight(t);
+            const Scalar w = detail::b2_ball_weight(diff, std::sqrt(d2), s.inv_r, a, gradient ? &gw : nullptr);
             const Scalar g = local(static_cast<std::size_t>(ids[k]), x, gradient ? &lg : nullptr);
-            W += w;
-            F += w * g;
-            if (gradient) {
-                const Vec3 gw = d > 0 ? Vec3(a * b2_weight_derivative(t) * Scalar(1.5) * s.inv_r / d * diff)
-                                      : Vec3::Zero();
-                dW += gw;
-                dF += gw * g + w * lg;
-            }
+            acc.add(w, gw, g, lg);
         }
-        if (!(W > 0)) return nan;
-        if (gradient) *gradient = (dF * W - F * dW) / (W * W);
-        return F / W;
+        if (!acc.covered()) return nan;
+        if (gradient) *gradient = acc.gradient();
+        return acc.value();
     }
 
 private:

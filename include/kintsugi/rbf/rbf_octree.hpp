@@ -27,6 +27,7 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/field/isosurface.hpp>
+#include <kintsugi/field/partition_of_unity.hpp>
 #include <kintsugi/rbf/detail/rbf_solve.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 #include <kintsugi/spatial/morton.hpp>
@@ -223,11 +224,12 @@ struct RBFOctreeData {
         return true;
     }
 
-    /// Blends the live leaves whose overlap boxes hold x: weights Π_k (1 - t_k²)²
-    /// (C¹, zero on the box). Returns false when none holds x.
+    /// Blends the live leaves whose overlap boxes hold x: the shared partition of unity
+    /// (field/partition_of_unity.hpp) with box_weight over each α-box, Π_k (1 - t_k²)²
+    /// (C¹, zero on the box), found by descending the octree. Returns false when none
+    /// holds x.
     bool blend_value(const Vec3& x, const std::array<int, 3>& r, Scalar& f, Vec3* grad) const {
-        Scalar W = 0, F = 0;
-        Vec3 dW = Vec3::Zero(), dF = Vec3::Zero();
+        PUAccumulator acc(grad != nullptr);
         std::size_t stack[256];
         std::size_t top = 0;
         for (int k = std::max(0, r[2] - 1); k <= std::min(root_count[2] - 1, r[2] + 1); ++k)
@@ -244,26 +246,17 @@ struct RBFOctreeData {
             }
             const Leaf& l = leaves[static_cast<std::size_t>(n.leaf)];
             if (!l.live) continue;
-            Vec3 s, ds;
-            for (int k = 0; k < 3; ++k) {
-                const Scalar q = 1 - t[k] * t[k];
-                s[k] = q * q;
-                ds[k] = -4 * t[k] * q / (alpha * n.side / 2) * (x[k] >= node_center(n)[k] ? 1 : -1);
-            }
-            const Scalar w = s.prod();
-            Vec3 lg;
-            const Scalar g = leaf_value(l, x, grad ? &lg : nullptr);
-            W += w;
-            F += w * g;
             if (grad) {
-                const Vec3 gw(ds[0] * s[1] * s[2], s[0] * ds[1] * s[2], s[0] * s[1] * ds[2]);
-                dW += gw;
-                dF += gw * g + w * lg;
+                Vec3 gw, lg;
+                const Scalar w = box_weight(x, node_center(n), alpha * n.side / 2, &gw);
+                acc.add(w, gw, leaf_value(l, x, &lg), lg);
+            } else {
+                acc.add(box_weight(x, node_center(n), alpha * n.side / 2), leaf_value(l, x, nullptr));
             }
         }
-        if (!(W > 0)) return false;
-        f = F / W;
-        if (grad) *grad = (dF * W - F * dW) / (W * W);
+        if (!acc.covered()) return false;
+        f = acc.value();
+        if (grad) *grad = acc.gradient();
         return true;
     }
 
