@@ -84,14 +84,20 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["rounds"] = r.rounds;
         j["not_placed"] = r.not_placed;
         j["coverage_verified"] = r.coverage_verified;
+        // Indices into OUT of the surfels whose boundary keeps an uncovered arc (empty
+        // exactly when coverage_verified): an open border, a rim, a sharp crease.
+        kcli::Json::Array uncovered;
+        for (std::size_t i : r.uncovered_surfels) uncovered.emplace_back(i);
+        j["uncovered_surfels"] = uncovered;
         ctx.info("filled " + kcli::grouped(r.input_surfels) + " surfels to " + kcli::grouped(r.surfels.points.size()) +
                  " (radius " + kintsugi::detail::format_number(r.radius) + ", " + std::to_string(o->params.levels) +
                  " level(s), coverage " + (r.coverage_verified ? "verified" : "not verified: open border or rim") +
                  ") -> " + o->output);
         if (!r.coverage_verified)
-            ctx.notice(std::to_string(r.not_placed) +
-                       " new surfel(s) were not placed (an open border, a thin rim or a sharp crease): the output may "
-                       "keep small gaps there");
+            ctx.notice(kcli::grouped(r.uncovered_surfels.size()) + " surfel(s) keep an uncovered arc of their boundary (" +
+                       std::to_string(r.not_placed) +
+                       " new surfel(s) not placed: an open border, a thin rim or a sharp crease); --json lists them "
+                       "as uncovered_surfels");
     };
 }
 

@@ -97,12 +97,17 @@ json_check "rbf: estimated normals" "j['normals_estimated'] is True and j['point
 
 # ---- upsample: surfels with a radius property; a filled set needs nothing more; bad radius
 expect 0 "upsample --json" -- "$bin" upsample "$cloud" "$work/surfels.ply" --radius-rel 0.01 --json
-json_check "upsample fields" "j['input_surfels']==5210 and j['surfels']>5210 and j['new_surfels']==j['surfels']-5210 and j['coverage_verified'] is True and j['level_counts']==[j['surfels']] and j['input_had_radii'] is False"
+json_check "upsample fields" "j['input_surfels']==5210 and j['surfels']>5210 and j['new_surfels']==j['surfels']-5210 and j['coverage_verified'] is True and j['level_counts']==[j['surfels']] and j['input_had_radii'] is False and j['uncovered_surfels']==[]"
 if head -c 400 "$work/surfels.ply" | grep -q "property double radius"; then ok; else bad "upsample output has no radius property"; fi
 expect 0 "upsample of a filled set" -- "$bin" upsample "$work/surfels.ply" "$work/surfels2.ply" --radius-rel 0.01 --json
 json_check "filled set unchanged" "j['input_had_radii'] is True and j['new_surfels']==0 and j['coverage_verified'] is True"
 expect 0 "upsample levels" -- "$bin" upsample "$cloud" "$work/lod.ply" --radius-rel 0.02 --levels 3 --json
 json_check "upsample level counts" "len(j['level_counts'])==3 and j['level_counts'][0]<j['level_counts'][1]<j['level_counts'][2]==j['surfels']"
+# an open surface (bun_zipper_res4's bottom holes): the border's surfels are listed, indices into OUT
+expect 0 "normals for open upsample" -- "$bin" normals "$open_mesh" "$work/open_points.ply"
+expect 0 "upsample open surface" -- "$bin" upsample "$work/open_points.ply" "$work/open_surfels.ply" --radius-rel 0.02 --json
+json_check "upsample uncovered surfels" "j['coverage_verified'] is False and len(j['uncovered_surfels'])>0 and j['uncovered_surfels']==sorted(set(j['uncovered_surfels'])) and j['uncovered_surfels'][-1]<j['surfels']"
+stderr_has "upsample uncovered notice" "uncovered_surfels"
 expect 2 "upsample without a radius" -- "$bin" upsample "$cloud" "$work/u.ply"
 stderr_has "upsample radius message" "radius"
 expect 2 "upsample both radii" -- "$bin" upsample "$cloud" "$work/u.ply" --radius 0.1 --radius-rel 0.01

@@ -22,9 +22,10 @@
 /// by Δω of eq. (1) (a hexagonal layout for equal radii), the small-gap rules (b)-(d),
 /// and the slide of eq. (2) when a new centre falls inside an existing disk; the new
 /// surfels are back-projected onto the MLS surface of the INPUT points (APSS,
-/// field/point_set_surface.hpp; kd-tree on the input, growable uniform grid on the
-/// output) and processed in turn. Rounds repeat over the surfels that added disks
-/// until a round finds no gap; the surfels whose last fill dropped a placement are
+/// field/point_set_surface.hpp; kd-tree on the input, hashed cells on the output) and
+/// processed in turn, in parallel over cells far enough apart (deterministic: see
+/// detail::surfel_fill::run). Rounds repeat over the surfels whose placed disks leave
+/// part of their boundary open until a round finds no gap; the surfels whose last fill dropped a placement are
 /// then tested again against their present neighbours, and those still showing an
 /// uncovered arc are listed (uncovered_surfels; coverage_verified when none). Curvature-adaptive radius: r = ε_r / √κ (κ the largest
 /// |principal curvature| of a jet fit of the input), r_new computed at p_i and replaced
@@ -169,10 +170,54 @@ inline double expected_output(const std::vector<Vec3>& P, Scalar diag, Scalar ra
     return std::max(total, static_cast<double>(P.size()));
 }
 
-/// The whole fill on local-frame copies: P, N (unit), R (level-0 radii) in; out filled.
 /// A new surfel closer than this times its radius to an existing centre is not placed.
 constexpr Scalar redundant_fraction = 0.1;
+/// Most tiles one parallel pass takes before its new surfels are merged and progress
+/// (and cancellation) is reported: bounds the time between two reports.
+constexpr std::size_t tiles_per_pass = 2048;
 
+/// What the surfels of one tile added during one pass: the new surfels (level-0 radius
+/// r, adaptive radius rn0 or NaN, bound reach_in on the distance to the nearest input
+/// point), the surfels that added some, and the counters.
+struct TileOutput {
+    std::vector<Vec3> p, n;
+    std::vector<Scalar> r, rn0, reach_in;
+    std::vector<Index> again;
+    std::size_t gaps = 0, not_placed = 0, redos = 0;
+    void clear() {
+        p.clear();
+        n.clear();
+        r.clear();
+        rn0.clear();
+        reach_in.clear();
+        again.clear();
+        gaps = not_placed = redos = 0;
+    }
+};
+
+/// Per-thread scratch of one surfel's fill.
+struct FillScratch {
+    std::vector<Circle> circles;
+    PlaneFill pf;
+    std::vector<Vec3> newp, newn;
+    std::vector<Scalar> newr, new_reach;
+};
+
+/// The whole fill on local-frame copies: P, N (unit), R (level-0 radii) in; res filled.
+///
+/// Order of work, deterministic whatever the thread count: a round processes its queue
+/// in waves (the queue, then the surfels the previous wave added, ...). A wave's surfels
+/// are grouped by tile (a SurfelCells cell, 6 r_max wide) and the tiles by colour (the
+/// parities of their three coordinates): tiles of one colour are at least 6 r_max apart,
+/// farther than one surfel's reads (r_i + r_new + r_max <= 3 r_max) and another's writes
+/// (within r_i + r_new <= 2 r_max of it, plus the back-projection's small move) reach
+/// together, so they are filled in parallel, each tile's surfels in index order seeing
+/// the tile's own new surfels at once. After each pass over (at most tiles_per_pass)
+/// tiles of a colour, the new surfels are appended in tile order. A far back-projection
+/// could bring two tiles' disks near each other; each tile reads only what was merged
+/// before the pass and its own disks, so the result stays one (at worst a gap is filled
+/// from both sides). A surfel whose placed disks (back-projected: moved and tilted)
+/// cover its boundary is done; the others are filled again in the next round.
 inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R, const PointSetSurface& mls,
                 const Config& cfg, Progress& progress, SurfelFillResult& res) {
     const KdTree& tree = mls.tree();
@@ -199,129 +244,235 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
     }
     // The input radii as given (the output keeps them); in the gap tests they count
     // at most max_input_radius_factor x radius, which bounds the neighbour searches.
-    const std::vector<Scalar> R_given = adaptive ? std::vector<Scalar>{} : R;
+    std::vector<Scalar> R_given = adaptive ? std::vector<Scalar>{} : R;
     for (Scalar& r : R) r = std::min(r, max_input_radius_factor * cfg.radius);
-    std::vector<std::uint16_t> level_of(nin, 0);
     Scalar rmax0 = cfg.radius;
     for (Scalar r : R) rmax0 = std::max(rmax0, r);
-    std::vector<Circle> circles;
-    std::vector<Neighbor> nb;
-    PlaneFill pf;
+    BoundingBox box;
+    for (const Vec3& p : P) box.extend(p);
+    // The input in the order of level 0's first wave (by tile, see above): the surfels
+    // processed one after the other, and their neighbours, then lie near each other in
+    // memory. perm[k]: the input index of internal surfel k; the output keeps the input order.
+    std::vector<Index> perm(nin);
+    {
+        const SurfelCells cells(box.min, box.max, 6 * rmax0);
+        std::vector<std::pair<std::uint64_t, Index>> order(nin);
+        parallel_for(0, nin, [&](std::size_t i) { order[i] = {cells.coloured_key(P[i]), i}; }, 4096);
+        detail::sort_maybe_parallel(order);
+        for (std::size_t k = 0; k < nin; ++k) perm[k] = order[k].second;
+        auto permute = [&](auto& v) {
+            if (v.size() != nin) return;
+            auto copy = v;
+            for (std::size_t k = 0; k < nin; ++k) v[k] = copy[perm[k]];
+        };
+        permute(P);
+        permute(N);
+        permute(R);
+        permute(rn0);
+        permute(R_given);
+    }
+    // reach_in[i] >= the distance from surfel i to the nearest input point (0 for the
+    // input): a new centre x with |x - p_i| + reach_in[i] within max_distance passes the
+    // max_distance test without a kd-tree query (the triangle inequality: the query
+    // could only confirm it).
+    std::vector<Scalar> reach_in(nin, 0);
     std::vector<std::size_t> uncovered;
     for (std::size_t level = 0; level < cfg.levels; ++level) {
         const Scalar scale = std::ldexp(Scalar(1), -static_cast<int>(level));
         progress.stage("fill level " + std::to_string(level), 0.1 + 0.9 * double(level) / double(cfg.levels),
                        0.1 + 0.9 * double(level + 1) / double(cfg.levels));
         const Scalar rmax = rmax0 * scale;
-        // Cells as wide as the widest query (r_i + r_new + r_max): one query visits the
-        // 3x3x3 cells around its own.
-        UniformGrid grid(P, 3 * rmax);
-        std::vector<Index> queue(P.size());
-        std::iota(queue.begin(), queue.end(), Index{0});
+        // Cells twice as wide as the widest query (r_i + r_new + r_max <= 3 r_max).
+        SurfelCells cells(box.min, box.max, 6 * rmax);
+        for (std::size_t i = 0; i < P.size(); ++i) cells.insert({P[i], N[i], R[i], i});
         // open[i]: the last fill of i left part of a gap unfilled (a placement dropped).
         std::vector<unsigned char> open(P.size(), 0);
-        // The neighbours of surfel i projected onto its tangent plane (e1, e2), with
-        // every disk that can meet i or a new disk of radius rn around it.
-        auto gather_circles = [&](Index i, Scalar ri, Scalar rn, const Vec3& e1, const Vec3& e2) {
+        auto new_radius = [&](Index i) {
+            if (!adaptive) return cfg.radius * scale;
+            return (std::isnan(rn0[i]) ? adaptive_radius(P[i]) : rn0[i]) * scale;
+        };
+        // The neighbours of surfel i projected onto its tangent plane (e1, e2): every
+        // disk that can meet i or a new disk of radius rn around it, merged ones in the
+        // cells' order, then the tile's own new ones (`local`, may be null).
+        auto gather_circles = [&](Index i, Scalar ri, Scalar rn, const Vec3& e1, const Vec3& e2,
+                                  const TileOutput* local, std::vector<Circle>& circles) {
             const Vec3 pi = P[i], ni = N[i];
             const Scalar reach = ri + rn + rmax;
-            grid.radius_search_squared(pi, reach * reach, nb, false);
-            std::sort(nb.begin(), nb.end(), [](const Neighbor& a, const Neighbor& b) { return a.index < b.index; });
             circles.clear();
-            for (const Neighbor& x : nb) {
-                if (x.index == i) continue;
-                const Vec3 d = P[x.index] - pi;
-                const Scalar rho = std::max(Scalar(0), N[x.index].dot(ni)) * R[x.index] * scale;
+            auto add = [&](const Vec3& p, const Vec3& n, Scalar r) {
+                const Scalar rho = std::max(Scalar(0), n.dot(ni)) * r * scale;
+                const Vec3 d = p - pi;
                 if (rho > 0) circles.push_back({Vec2(d.dot(e1), d.dot(e2)), rho});
+            };
+            cells.for_each_in_ball(pi, reach, [&](const SurfelCells::Entry& e) {
+                if (e.i != i) add(e.p, e.n, e.r);
+            });
+            if (local)
+                for (std::size_t k = 0; k < local->p.size(); ++k)
+                    if ((local->p[k] - pi).squaredNorm() <= reach * reach) add(local->p[k], local->n[k], local->r[k]);
+        };
+        // One surfel's fill (§3.2): its gaps, the new surfels back-projected, checked and
+        // kept in `out` (which later surfels of the same tile see).
+        auto fill_surfel = [&](Index i, TileOutput& out, FillScratch& s) {
+            const Vec3 pi = P[i];
+            const Scalar ri = R[i] * scale;
+            if (adaptive && std::isnan(rn0[i])) rn0[i] = adaptive_radius(pi);
+            Scalar rn = new_radius(i);
+            Vec3 e1, e2;
+            tangent_basis(N[i], e1, e2);
+            gather_circles(i, ri, rn, e1, e2, &out, s.circles);
+            const std::size_t nc = s.circles.size();
+            std::size_t dropped = 0;
+            for (int attempt = 0;; ++attempt) {
+                s.circles.resize(nc);
+                fill_plane(ri, rn, s.circles, s.pf);
+                s.newp.clear();
+                s.newn.clear();
+                s.newr.clear();
+                s.new_reach.clear();
+                dropped = 0;
+                Scalar rmin_new = std::numeric_limits<Scalar>::infinity();
+                for (const Vec2& c : s.pf.centres) {
+                    const Vec3 x = pi + c.x() * e1 + c.y() * e2;
+                    const SurfaceProjection pr = mls.project_unchecked(x);
+                    if (!pr.point.allFinite() || !(pr.normal.squaredNorm() > 0.5)) {
+                        ++dropped;
+                        continue;
+                    }
+                    Scalar to_input = (pr.point - pi).norm() + reach_in[i];
+                    if (!(to_input <= cfg.max_distance)) {
+                        to_input = std::sqrt(tree.nearest(pr.point).squared_distance);
+                        if (to_input > cfg.max_distance) {
+                            ++dropped;
+                            continue;
+                        }
+                    }
+                    // A disk landing on an existing centre adds nothing: the surface bends
+                    // too fast for i's tangent plane here (a rim, an open border).
+                    const Scalar near = redundant_fraction * rn, near2 = near * near;
+                    bool redundant = cells.any_in_ball(pr.point, near);
+                    for (const Vec3& q : out.p) redundant = redundant || (q - pr.point).squaredNorm() <= near2;
+                    for (const Vec3& q : s.newp) redundant = redundant || (q - pr.point).squaredNorm() <= near2;
+                    if (redundant) {
+                        ++dropped;
+                        continue;
+                    }
+                    s.newp.push_back(pr.point);
+                    s.newn.push_back(pr.normal);
+                    s.new_reach.push_back(to_input);
+                    if (adaptive) {
+                        s.newr.push_back(adaptive_radius(pr.point));
+                        rmin_new = std::min(rmin_new, s.newr.back() * scale);
+                    }
+                }
+                if (adaptive && attempt < 2 && !s.newp.empty() && rn / rmin_new > cfg.ratio) {
+                    rn = rmin_new;  // curvature changes fast here: redo with r'
+                    ++out.redos;
+                    continue;
+                }
+                break;
+            }
+            out.not_placed += dropped;
+            open[i] = dropped > 0;
+            if (s.pf.centres.empty()) return;
+            out.gaps += s.pf.gaps;
+            if (s.newp.empty()) return;  // nothing could be placed: not retried
+            // The disks as placed (back-projected: moved off i's plane, tilted) may leave
+            // a sliver of i's boundary open: i is filled again in the next round only
+            // then (disks added later can only cover more of it).
+            s.circles.resize(nc);
+            for (std::size_t k = 0; k < s.newp.size(); ++k) {
+                const Vec3 d = s.newp[k] - pi;
+                const Scalar rho = std::max(Scalar(0), s.newn[k].dot(N[i])) * rn;
+                if (rho > 0) s.circles.push_back({Vec2(d.dot(e1), d.dot(e2)), rho});
+            }
+            find_gaps(ri, s.circles, s.pf.arcs, s.pf.gap_list);
+            if (s.pf.gap_list.empty())
+                open[i] = 0;
+            else
+                out.again.push_back(i);
+            for (std::size_t k = 0; k < s.newp.size(); ++k) {
+                out.p.push_back(s.newp[k]);
+                out.n.push_back(s.newn[k]);
+                out.r.push_back(rn / scale);  // stored as a level-0 radius
+                out.rn0.push_back(adaptive ? s.newr[k] : std::numeric_limits<Scalar>::quiet_NaN());
+                out.reach_in.push_back(s.new_reach[k]);
             }
         };
+
+        std::vector<Index> queue(P.size());
+        std::iota(queue.begin(), queue.end(), Index{0});
         bool verified = false;
         std::size_t done_total = 0;
-        std::vector<Index> again;
+        std::vector<Index> again, next;
+        // (colour, tile, surfel): colour in the top 3 bits, the tile's packed coordinates below.
+        std::vector<std::pair<std::uint64_t, Index>> order;
+        std::vector<std::size_t> tile_start;
+        std::vector<TileOutput> outs;
         for (std::size_t round = 0; round < cfg.rounds; ++round) {
             ++res.rounds;
             again.clear();
-            for (std::size_t qi = 0; qi < queue.size(); ++qi) {
-                if ((++done_total & 255) == 0)
-                    progress.update(0.9 * double(done_total) / double(done_total + queue.size() - qi));
-                const Index i = queue[qi];
-                const Vec3 pi = P[i];
-                const Scalar ri = R[i] * scale;
-                if (adaptive && std::isnan(rn0[i])) rn0[i] = adaptive_radius(pi);
-                Scalar rn = (adaptive ? rn0[i] : cfg.radius) * scale;
-                Vec3 e1, e2;
-                tangent_basis(N[i], e1, e2);
-                gather_circles(i, ri, rn, e1, e2);
-                const std::size_t nc = circles.size();
-                std::vector<Vec3> newp, newn;
-                std::vector<Scalar> newr;
-                std::size_t dropped = 0;
-                for (int attempt = 0;; ++attempt) {
-                    circles.resize(nc);
-                    fill_plane(ri, rn, circles, pf);
-                    newp.clear();
-                    newn.clear();
-                    newr.clear();
-                    dropped = 0;
-                    Scalar rmin_new = std::numeric_limits<Scalar>::infinity();
-                    for (const Vec2& c : pf.centres) {
-                        const Vec3 x = pi + c.x() * e1 + c.y() * e2;
-                        const SurfaceProjection pr = mls.project_unchecked(x);
-                        if (!pr.point.allFinite() || !(pr.normal.squaredNorm() > 0.5) ||
-                            tree.nearest(pr.point).squared_distance > cfg.max_distance * cfg.max_distance) {
-                            ++dropped;
-                            continue;
-                        }
-                        // A disk landing on an existing centre adds nothing: the surface bends
-                        // too fast for i's tangent plane here (a rim, an open border).
-                        bool redundant = false;
-                        const Scalar near = redundant_fraction * rn;
-                        grid.for_each_in_ball(pr.point, near, [&](Index, Scalar) { redundant = true; });
-                        for (const Vec3& q : newp) redundant = redundant || (q - pr.point).squaredNorm() <= near * near;
-                        if (redundant) {
-                            ++dropped;
-                            continue;
-                        }
-                        newp.push_back(pr.point);
-                        newn.push_back(pr.normal);
-                        if (adaptive) {
-                            newr.push_back(adaptive_radius(pr.point));
-                            rmin_new = std::min(rmin_new, newr.back() * scale);
+            std::vector<Index> wave = queue;
+            while (!wave.empty()) {
+                order.resize(wave.size());
+                parallel_for(0, wave.size(), [&](std::size_t k) { order[k] = {cells.coloured_key(P[wave[k]]), wave[k]}; },
+                             4096);
+                detail::sort_maybe_parallel(order);
+                tile_start.clear();
+                for (std::size_t k = 0; k < order.size(); ++k)
+                    if (k == 0 || order[k].first != order[k - 1].first) tile_start.push_back(k);
+                tile_start.push_back(order.size());
+                next.clear();
+                // Passes: runs of tiles of one colour, at most tiles_per_pass each.
+                for (std::size_t t0 = 0; t0 + 1 < tile_start.size();) {
+                    const std::uint64_t colour = order[tile_start[t0]].first >> 61;
+                    std::size_t t1 = t0 + 1;
+                    while (t1 + 1 < tile_start.size() && t1 - t0 < tiles_per_pass &&
+                           order[tile_start[t1]].first >> 61 == colour)
+                        ++t1;
+                    if (outs.size() < t1 - t0) outs.resize(t1 - t0);
+                    parallel_for(t0, t1, [&](std::size_t t) {
+                        thread_local FillScratch scratch;
+                        TileOutput& out = outs[t - t0];
+                        out.clear();
+                        for (std::size_t k = tile_start[t]; k < tile_start[t + 1]; ++k)
+                            fill_surfel(order[k].second, out, scratch);
+                    }, 1);
+                    for (std::size_t t = t0; t < t1; ++t) {
+                        const TileOutput& out = outs[t - t0];
+                        res.gaps_filled += out.gaps;
+                        res.not_placed += out.not_placed;
+                        res.radius_redos += out.redos;
+                        again.insert(again.end(), out.again.begin(), out.again.end());
+                        if (P.size() + out.p.size() > cfg.max_output)
+                            throw invalid_input(
+                                "kintsugi::fill_surfel_gaps: the fill reached params.max_output_surfels = " +
+                                std::to_string(cfg.max_output) + " surfels at level " + std::to_string(level) +
+                                "; pass a larger radius or raise the cap");
+                        for (std::size_t k = 0; k < out.p.size(); ++k) {
+                            const Index id = P.size();
+                            cells.insert({out.p[k], out.n[k], out.r[k], id});
+                            P.push_back(out.p[k]);
+                            N.push_back(out.n[k]);
+                            R.push_back(out.r[k]);
+                            rn0.push_back(out.rn0[k]);
+                            reach_in.push_back(out.reach_in[k]);
+                            open.push_back(0);
+                            next.push_back(id);
                         }
                     }
-                    if (adaptive && attempt < 2 && !newp.empty() && rn / rmin_new > cfg.ratio) {
-                        rn = rmin_new;  // curvature changes fast here: redo with r'
-                        ++res.radius_redos;
-                        continue;
-                    }
-                    break;
+                    done_total += tile_start[t1] - tile_start[t0];
+                    progress.update(0.9 * double(done_total) /
+                                    double(done_total + (order.size() - tile_start[t1]) + next.size()));
+                    t0 = t1;
                 }
-                res.not_placed += dropped;
-                open[i] = dropped > 0;
-                if (pf.centres.empty()) continue;
-                res.gaps_filled += pf.gaps;
-                if (newp.empty()) continue;  // nothing could be placed: not retried
-                again.push_back(i);
-                if (P.size() + newp.size() > cfg.max_output)
-                    throw invalid_input("kintsugi::fill_surfel_gaps: the fill reached params.max_output_surfels = " +
-                                        std::to_string(cfg.max_output) + " surfels at level " + std::to_string(level) +
-                                        "; pass a larger radius or raise the cap");
-                for (std::size_t k = 0; k < newp.size(); ++k) {
-                    const Index id = grid.append(newp[k]);
-                    (void)id;
-                    P.push_back(newp[k]);
-                    N.push_back(newn[k]);
-                    R.push_back(rn / scale);  // stored as a level-0 radius
-                    level_of.push_back(static_cast<std::uint16_t>(level));
-                    rn0.push_back(adaptive ? newr[k] : std::numeric_limits<Scalar>::quiet_NaN());
-                    open.push_back(0);
-                    queue.push_back(static_cast<Index>(P.size() - 1));
-                }
+                wave.swap(next);
             }
             if (again.empty()) {
                 verified = true;
                 break;
             }
+            std::sort(again.begin(), again.end());
             queue = again;
         }
         // What is left open: the surfels whose last fill dropped a placement, and (when
@@ -333,29 +484,38 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         if (!verified) suspects.insert(suspects.end(), again.begin(), again.end());
         std::sort(suspects.begin(), suspects.end());
         suspects.erase(std::unique(suspects.begin(), suspects.end()), suspects.end());
-        for (const Index i : suspects) {
-            const Scalar ri = R[i] * scale;
-            const Scalar rn = (adaptive ? (std::isnan(rn0[i]) ? adaptive_radius(P[i]) : rn0[i]) : cfg.radius) * scale;
+        std::vector<unsigned char> still_open(suspects.size(), 0);
+        parallel_for(0, suspects.size(), [&](std::size_t k) {
+            thread_local FillScratch s;
+            const Index i = suspects[k];
             Vec3 e1, e2;
             tangent_basis(N[i], e1, e2);
-            gather_circles(i, ri, rn, e1, e2);
-            fill_plane(ri, rn, circles, pf);
-            if (!pf.centres.empty()) uncovered.push_back(i);
-        }
+            const Scalar ri = R[i] * scale, rn = new_radius(i);
+            gather_circles(i, ri, rn, e1, e2, nullptr, s.circles);
+            fill_plane(ri, rn, s.circles, s.pf);
+            still_open[k] = !s.pf.centres.empty();
+        }, 16);
+        for (std::size_t k = 0; k < suspects.size(); ++k)
+            if (still_open[k]) uncovered.push_back(suspects[k]);
         res.level_counts.push_back(P.size());
     }
+    // Output: the input in its own order, then the new surfels; world frame, radii of
+    // the finest level.
+    auto out_index = [&](std::size_t k) { return k < nin ? perm[k] : k; };
+    for (std::size_t& i : uncovered) i = out_index(i);
     std::sort(uncovered.begin(), uncovered.end());
     uncovered.erase(std::unique(uncovered.begin(), uncovered.end()), uncovered.end());
     res.uncovered_surfels = std::move(uncovered);
     res.coverage_verified = res.uncovered_surfels.empty();
-    // Output: world frame, radii of the finest level.
     const Scalar fine = std::ldexp(Scalar(1), -static_cast<int>(cfg.levels - 1));
     res.surfels.points.resize(P.size());
-    res.surfels.normals = std::move(N);
+    res.surfels.normals.resize(P.size());
     res.surfels.radii.resize(P.size());
-    for (std::size_t i = 0; i < P.size(); ++i) {
-        res.surfels.points[i] = cfg.frame.to_world(P[i]);
-        res.surfels.radii[i] = cfg.frame.to_world((i < R_given.size() ? R_given[i] : R[i]) * fine);
+    for (std::size_t k = 0; k < P.size(); ++k) {
+        const std::size_t i = out_index(k);
+        res.surfels.points[i] = cfg.frame.to_world(P[k]);
+        res.surfels.normals[i] = N[k];
+        res.surfels.radii[i] = cfg.frame.to_world((k < R_given.size() ? R_given[k] : R[k]) * fine);
     }
 }
 
