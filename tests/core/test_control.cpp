@@ -1,15 +1,20 @@
 // This Source Code Form is subject to the terms of the Mozilla Public
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
-// RunControl/Progress and the deterministic parallel loops.
+// RunControl/Progress, the deterministic parallel loops and the disjoint sets.
 #include <doctest/doctest.h>
 
 #include <kintsugi/core/control.hpp>
+#include <kintsugi/core/disjoint_sets.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
+#include <random>
+#include <utility>
 #include <vector>
 
 namespace ks = kintsugi;
@@ -91,4 +96,66 @@ TEST_CASE("exceptions carry the file name") {
     CHECK(std::string(e.what()) == "/tmp/x.ply: truncated body");
     CHECK(e.path() == "/tmp/x.ply");
     CHECK_THROWS_AS(throw ks::invalid_input("bad"), std::invalid_argument);
+}
+
+TEST_CASE_TEMPLATE("DisjointSets: the components of a random graph, named by their smallest element", I, std::size_t,
+                   std::uint32_t) {
+    // 2,000 elements, 1,500 random unions (about 500 sets), against a breadth-first
+    // labelling of the same graph; then the same unions in reverse order.
+    constexpr std::size_t n = 2000;
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<std::size_t> pick(0, n - 1);
+    std::vector<std::pair<I, I>> edges(1500);
+    for (auto& [a, b] : edges) a = static_cast<I>(pick(rng)), b = static_cast<I>(pick(rng));
+    std::vector<std::vector<std::size_t>> adj(n);
+    for (const auto& [a, b] : edges) adj[a].push_back(b), adj[b].push_back(a);
+    std::vector<std::size_t> smallest(n, n);  // breadth-first: the smallest element of each component
+    std::size_t components = 0;
+    for (std::size_t s = 0; s < n; ++s) {
+        if (smallest[s] != n) continue;
+        ++components;
+        std::vector<std::size_t> queue{s};
+        smallest[s] = s;
+        for (std::size_t q = 0; q < queue.size(); ++q)
+            for (const std::size_t u : adj[queue[q]])
+                if (smallest[u] == n) smallest[u] = s, queue.push_back(u);
+    }
+    REQUIRE(components > 300);
+    REQUIRE(components < 900);
+
+    ks::detail::DisjointSets<I> sets(n);
+    CHECK(sets.size() == n);
+    std::size_t merges = 0;
+    for (const auto& [a, b] : edges) {
+        const bool apart = !sets.same(a, b);
+        CHECK(sets.unite(a, b) == apart);  // true exactly when two sets were merged
+        merges += apart;
+        CHECK(sets.same(a, b));
+    }
+    CHECK(merges == n - components);
+    for (std::size_t v = 0; v < n; ++v) CHECK(sets.find(static_cast<I>(v)) == smallest[v]);
+
+    ks::detail::DisjointSets<I> reversed(n);
+    for (auto it = edges.rbegin(); it != edges.rend(); ++it) reversed.unite(it->second, it->first);
+    for (std::size_t v = 0; v < n; ++v) CHECK(reversed.find(static_cast<I>(v)) == smallest[v]);
+}
+
+TEST_CASE("DisjointSets: a chain linked from its far end") {
+    // unite(k + 1, k) for k = n-2 .. 0 hangs each root under a smaller one, a path of
+    // depth n (the worst order for a union without ranks); every element still finds 0.
+    constexpr std::size_t n = 100000;
+    ks::detail::DisjointSets<std::size_t> sets(n);
+    std::size_t merges = 0;
+    for (std::size_t k = n - 1; k-- > 0;) merges += sets.unite(k + 1, k);
+    CHECK(merges == n - 1);
+    std::size_t found_zero = 0;
+    for (std::size_t v = n; v-- > 0;) found_zero += sets.find(v) == 0;
+    CHECK(found_zero == n);
+    CHECK_FALSE(sets.unite(0, n - 1));
+    sets.reset(3);  // singletons again, whatever was united before
+    CHECK(sets.size() == 3);
+    CHECK(sets.find(2) == 2);
+    CHECK_FALSE(sets.same(0, 2));
+    const ks::detail::DisjointSets<std::size_t> none;
+    CHECK(none.size() == 0);
 }

@@ -17,6 +17,7 @@
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
+#include <kintsugi/core/disjoint_sets.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
@@ -33,7 +34,6 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
-#include <numeric>
 #include <random>
 #include <string>
 #include <utility>
@@ -517,23 +517,17 @@ inline CompletionResult complete_indexed(IndexedMesh& work, const CompletionPara
         // patch faces joined through shared vertices, named by their rim), or no_hole.
         auto patch_holes = [&](const HalfedgeMesh& hm) {
             const std::size_t cap = hm.vertex_capacity();
-            std::vector<Index> parent(cap);
-            std::iota(parent.begin(), parent.end(), Index(0));
-            auto root = [&](Index a) {
-                while (parent[a] != a) a = parent[a] = parent[parent[a]];
-                return a;
-            };
+            detail::DisjointSets<Index> sets(cap);
             for (Index f = nf0; f < hm.face_capacity(); ++f) {
                 if (hm.is_removed_face(f)) continue;
-                const Index a = root(hm.face_vertex(f, 0));
-                parent[root(hm.face_vertex(f, 1))] = a;
-                parent[root(hm.face_vertex(f, 2))] = a;
+                sets.unite(hm.face_vertex(f, 0), hm.face_vertex(f, 1));
+                sets.unite(hm.face_vertex(f, 0), hm.face_vertex(f, 2));
             }
             std::vector<std::uint32_t> comp(cap, no_hole), lab(cap, no_hole);
             for (Index v = 0; v < nv0; ++v)
-                if (rim_hole[v] != no_hole) comp[root(v)] = rim_hole[v];
+                if (rim_hole[v] != no_hole) comp[sets.find(v)] = rim_hole[v];
             for (Index v = 0; v < cap; ++v)
-                if (!hm.is_removed_vertex(v)) lab[v] = comp[root(v)];
+                if (!hm.is_removed_vertex(v)) lab[v] = comp[sets.find(v)];
             return lab;
         };
 
@@ -1033,25 +1027,20 @@ inline CompletionResult complete_indexed(IndexedMesh& work, const CompletionPara
             // The hole of each new vertex: new vertices joined by new faces, labelled by
             // the rim vertex they touch.
             const std::size_t nn = new_pos.size();
-            std::vector<Index> parent(nn);
-            std::iota(parent.begin(), parent.end(), Index(0));
-            auto root = [&](Index a) {
-                while (parent[a] != a) a = parent[a] = parent[parent[a]];
-                return a;
-            };
+            detail::DisjointSets<Index> sets(nn);
             for (const Face& t : new_faces)
                 for (int k = 0; k < 3; ++k) {
                     const Index a = t[k], b = t[(k + 1) % 3];
-                    if (a >= nv0 && b >= nv0) parent[root(a - nv0)] = root(b - nv0);
+                    if (a >= nv0 && b >= nv0) sets.unite(a - nv0, b - nv0);
                 }
             std::vector<std::uint32_t> comp_hole(nn, std::numeric_limits<std::uint32_t>::max());
             for (const Face& t : new_faces)
                 for (int k = 0; k < 3; ++k)
                     if (t[k] < nv0 && rim_hole[t[k]] != std::numeric_limits<std::uint32_t>::max())
                         for (const Index u : t)
-                            if (u >= nv0) comp_hole[root(u - nv0)] = rim_hole[t[k]];
+                            if (u >= nv0) comp_hole[sets.find(u - nv0)] = rim_hole[t[k]];
             std::vector<std::uint32_t> hole_of(nn);
-            for (std::size_t i = 0; i < nn; ++i) hole_of[i] = comp_hole[root(static_cast<Index>(i))];
+            for (std::size_t i = 0; i < nn; ++i) hole_of[i] = comp_hole[sets.find(static_cast<Index>(i))];
             // λ per hole from the evidence of the data vertices nearest to its patch.
             std::vector<Scalar> re(filled_index.size(), 0), rq(filled_index.size(), 0);
             const KdTree new_tree = KdTree::adopt(std::vector<Vec3>(new_pos));

@@ -12,7 +12,7 @@
 /// @code
 /// std::vector<std::uint8_t> free(mesh.vertices.size(), 0);
 /// for (auto v : patch) free[v] = 1;                  // these vertices move
-/// auto r = kintsugi::fair_biharmonic(mesh, free);   // r.faired_vertices
+/// auto r = kintsugi::fair_biharmonic(mesh, free);   // r.moved_vertices
 /// @endcode
 
 #include <kintsugi/core/concepts.hpp>
@@ -36,23 +36,33 @@
 
 namespace kintsugi {
 
+namespace detail {
+
+/// Default of FairParams::delta and FillParams::fair_delta (the same pull).
+inline constexpr Scalar default_fair_delta = 1e-8;
+
+/// Throws invalid_input unless the pull `delta` (the parameter `name` of `fn`) is finite
+/// and >= 0.
+inline void check_fair_delta(Scalar delta, const std::string& fn, const char* name) {
+    if (!(delta >= 0) || !std::isfinite(delta))
+        throw invalid_input(fn + name + " = " + std::to_string(delta) + " must be finite and >= 0 (default 1e-8)");
+}
+
+}  // namespace detail
+
 /// Parameters of fair_biharmonic.
 struct FairParams {
-    /// Weight of the pull of each free vertex to its start position, >= 0 (default 1e-8):
-    /// tiny, it only keeps a component with no fixed vertex where it is (the system
-    /// would be singular there).
-    Scalar delta = 1e-8;
+    /// Weight of the pull of each free vertex to its start position, finite and >= 0
+    /// (default 1e-8; 0 = no pull). Tiny, it only keeps a component with no fixed vertex
+    /// where it is (the system would be singular there).
+    Scalar delta = detail::default_fair_delta;
+    /// Progress callback and stop token (default: none); a cancelled run leaves the mesh untouched.
     RunControl control{};
 };
 
-/// Result of fair_biharmonic.
-struct FairResult {
-    Status status = Status::ok;
-    /// Free vertices that have a neighbour (the unknowns of the system); 0 when the
-    /// factorisation failed, in which case nothing moved.
-    std::size_t faired_vertices = 0;
-    std::vector<StageTiming> timings;
-};
+/// Result of fair_biharmonic: moved_vertices = the free vertices that have a neighbour
+/// (the unknowns of the system), 0 when the factorisation failed (nothing moved).
+using FairResult = VertexSubsetResult;
 
 namespace detail {
 
@@ -98,7 +108,7 @@ struct FairSystem {
 /// other vertices fixed. Solved with Eigen's SimplicialLDLT. Returns the number of
 /// free vertices moved (0 when the factorisation fails; then x is unchanged).
 inline std::size_t biharmonic_fill(std::vector<Vec3>& x, const MeshTopology& topo,
-                                   const std::vector<std::uint8_t>& free, Scalar delta = 1e-8) {
+                                   const std::vector<std::uint8_t>& free, Scalar delta = default_fair_delta) {
     FairSystem sys(topo, x.size(), free);
     if (sys.size() == 0) return 0;
     std::vector<std::pair<Index, Scalar>> a;  // free part of the row: (column, coefficient)
@@ -206,26 +216,25 @@ inline std::size_t bilaplacian_fill(std::vector<Vec3>& x, const MeshTopology& to
 ///      stays in place, held by delta).
 /// @throws invalid_input for a free vector of the wrong length, delta < 0 or not finite,
 ///         a NaN/Inf coordinate or a face index out of range (mesh untouched).
-/// @return Status::ok with the number of vertices moved (0 if the system could not be
+/// @return Status::ok with moved_vertices, the number of vertices moved (0 if the system could not be
 ///         factorised: nothing moved); Status::cancelled: the mesh is untouched.
 template <MutableTriangleMesh M>
 FairResult fair_biharmonic(M& mesh, const std::vector<std::uint8_t>& free, const FairParams& params = {}) {
     const std::string fn = "kintsugi::fair_biharmonic: ";
     detail::check_vertex_flags(free, kintsugi::num_vertices(mesh), fn, "free", false);
-    if (!(params.delta >= 0) || !std::isfinite(params.delta))
-        throw invalid_input(fn + "delta = " + std::to_string(params.delta) + " must be finite and >= 0 (default 1e-8)");
+    detail::check_fair_delta(params.delta, fn, "delta");
     std::vector<Vec3> x = detail::finite_vertex_positions(mesh, fn);
     FairResult out = detail::run_cancellable<FairResult>(params.control, [&](detail::Progress& progress) {
         FairResult r;
         progress.stage("topology", 0.0, 0.2);
         const MeshTopology topo(mesh);
         progress.stage("solve", 0.2, 1.0);
-        r.faired_vertices = detail::biharmonic_fill(x, topo, free, params.delta);
+        r.moved_vertices = detail::biharmonic_fill(x, topo, free, params.delta);
         progress.check();
         r.timings = progress.finish();
         return r;
     });
-    if (out.faired_vertices > 0) detail::write_flagged_positions(mesh, x, free);
+    if (out.moved_vertices > 0) detail::write_flagged_positions(mesh, x, free);
     return out;
 }
 

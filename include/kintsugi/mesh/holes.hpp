@@ -17,6 +17,7 @@
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
+#include <kintsugi/core/disjoint_sets.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/fair.hpp>
@@ -85,44 +86,27 @@ struct BoundaryLoops {
     }
 };
 
-/// @brief Boundary loops of any triangle mesh with their length, projected area, extent,
-/// and the outer-border rule of HoleParams.
-/// @tparam M a TriangleMesh (IndexedMesh, Eigen V/F view, CGAL::Surface_mesh, ...).
-/// @param mesh   any combinatorics (see MeshTopology::boundary_loops for non-manifold cases)
-/// @param params the outer-border rule
-/// @throws invalid_input for a face index out of range, a NaN/Inf coordinate or
-///         outer_border_extent < 0 / NaN.
-template <TriangleMesh M>
-[[nodiscard]] BoundaryLoops find_boundary_loops(const M& mesh, const HoleParams& params = {}) {
-    const std::string fn = "kintsugi::find_boundary_loops: ";
-    if (!(params.outer_border_extent >= 0))
-        throw invalid_input(fn + "outer_border_extent = " + std::to_string(params.outer_border_extent) +
-                            " must be >= 0 (default 0.75; above 1 disables the outer border)");
-    const std::vector<Vec3> x = detail::finite_vertex_positions(mesh, fn);
+namespace detail {
+
+/// find_boundary_loops on the positions `x` (finite) and the topology of the mesh: one
+/// non-template body that every mesh type shares (the template checks and reads).
+inline BoundaryLoops boundary_loops_indexed(const std::vector<Vec3>& x, const MeshTopology& topo,
+                                            const HoleParams& params) {
     const std::size_t nv = x.size();
-    const MeshTopology topo(mesh);
     const auto& faces = topo.faces();
     // Components of faces sharing an edge (union-find over faces): a patch that touches
     // the rest at one vertex only is a component of its own, with its own border.
-    std::vector<Index> parent(faces.size());
-    std::iota(parent.begin(), parent.end(), Index{0});
-    auto find = [&](Index a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    };
+    DisjointSets<Index> sets(faces.size());
     for (Index e = 0; e < topo.num_edges(); ++e) {
         const auto ef = topo.edge_faces(e);
-        for (std::size_t k = 1; k < ef.size(); ++k) {
-            const Index a = find(ef[0]), b = find(ef[k]);
-            if (a != b) parent[std::max(a, b)] = std::min(a, b);
-        }
+        for (std::size_t k = 1; k < ef.size(); ++k) sets.unite(ef[0], ef[k]);
     }
     std::vector<Index> comp(faces.size(), HalfedgeMesh::invalid);
     std::vector<Vec3> face_area(faces.size());  // vector area: normal times area, doubled
     BoundaryLoops out;
     std::vector<BoundingBox> boxes;
     for (Index f = 0; f < faces.size(); ++f) {
-        const Index r = find(f);
+        const Index r = sets.find(f);
         if (comp[r] == HalfedgeMesh::invalid) {
             comp[r] = out.components++;
             boxes.emplace_back();
@@ -131,7 +115,7 @@ template <TriangleMesh M>
         for (const Index v : faces[f]) boxes[comp[f]].extend(x[v]);
         face_area[f] = (x[faces[f][1]] - x[faces[f][0]]).cross(x[faces[f][2]] - x[faces[f][0]]);
     }
-    std::vector<Index> seen(nv, HalfedgeMesh::invalid);  // per face: last loop that summed it
+    std::vector<Index> seen(nv, HalfedgeMesh::invalid);  // per vertex: last loop that visited it
     std::vector<Index> face_seen(faces.size(), HalfedgeMesh::invalid);
     for (auto& lv : topo.boundary_loops()) {
         const Index li = out.loops.size();
@@ -173,6 +157,26 @@ template <TriangleMesh M>
     return out;
 }
 
+}  // namespace detail
+
+/// @brief Boundary loops of any triangle mesh with their length, projected area, extent,
+/// and the outer-border rule of HoleParams.
+/// @tparam M a TriangleMesh (IndexedMesh, Eigen V/F view, CGAL::Surface_mesh, ...).
+/// @param mesh   any combinatorics (see MeshTopology::boundary_loops for non-manifold cases)
+/// @param params the outer-border rule
+/// @throws invalid_input for a face index out of range, a NaN/Inf coordinate or
+///         outer_border_extent < 0 / NaN.
+template <TriangleMesh M>
+[[nodiscard]] BoundaryLoops find_boundary_loops(const M& mesh, const HoleParams& params = {}) {
+    const std::string fn = "kintsugi::find_boundary_loops: ";
+    if (!(params.outer_border_extent >= 0))
+        throw invalid_input(fn + "outer_border_extent = " + std::to_string(params.outer_border_extent) +
+                            " must be >= 0 (default 0.75; above 1 disables the outer border)");
+    const std::vector<Vec3> x = detail::finite_vertex_positions(mesh, fn);
+    const MeshTopology topo(mesh);
+    return detail::boundary_loops_indexed(x, topo, params);
+}
+
 /// Parameters of fill_holes.
 struct FillParams {
     /// Refinement: a patch edge longer than this factor times the hole's target length
@@ -185,9 +189,11 @@ struct FillParams {
     std::size_t max_rounds = 30;
     /// false: keep the refined, flat (minimal-area) patch, skip the thin-plate fairing.
     bool fair = true;
-    /// Pull of the new vertices to their unfaired positions (FairParams::delta) in the
-    /// least-squares fairing, used only when the bi-Laplace system is singular.
-    Scalar fair_delta = 1e-8;
+    /// Pull of the new vertices to their unfaired positions in the least-squares
+    /// fairing, used only when the bi-Laplace system is singular: FairParams::delta
+    /// (finite, >= 0, default 1e-8).
+    Scalar fair_delta = detail::default_fair_delta;
+    /// Progress callback and stop token (default: none); a cancelled run leaves the mesh untouched.
     RunControl control{};
 };
 
@@ -372,46 +378,14 @@ inline bool is_locally_delaunay(const HalfedgeMesh& m, Index h) {
     return angle(h) + angle(g) <= Scalar(3.14159265358979323846) + Scalar(1e-12);
 }
 
-}  // namespace detail
-
-/// @brief Closes the given boundary loops with thin-plate patches (Liepa, "Filling holes
-/// in meshes", SGP 2003): triangulation of each loop (minimum area; a loop longer than
-/// detail::min_area_whole_loop vertices is first cut along short chords, so the cost
-/// stays O(n^2) in the loop length), refinement by edge
-/// splits and Delaunay flips until the patch edges are no longer than split_factor times
-/// the surrounding edge length, then the bi-Laplace fairing of the new vertices
-/// (cotangent weights over vertex areas, L²x = 0 on the new vertices, as CGAL's
-/// triangulate_refine_and_fair_hole), which continues the position and slope of the
-/// surface around the hole. The existing vertices and faces are not changed; the new
-/// ones are appended.
-///
-/// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). An
-///         IndexedMesh with normals receives normals for the new vertices (area-weighted).
-/// @param mesh   an oriented 2-manifold, possibly with boundary
-/// @param loops  loops to close, each as from find_boundary_loops (either direction):
-///               consecutive vertices joined by boundary edges
-/// @param params refinement, fairing, cancellation
-/// @throws invalid_input (mesh untouched) when the mesh is not an oriented manifold
-///         (naming the edge or vertex), a loop is shorter than 3 vertices, uses a vertex
-///         out of range, is not a boundary loop (naming the loop and the edge), a vertex is
-///         in two loops, or a parameter is out of range.
-/// @return Status::ok (a loop that cannot be triangulated without duplicating an
-///         existing edge is listed in unfilled_holes, the others are filled);
-///         Status::cancelled: the mesh is untouched.
-template <TopologyMutableMesh M>
-FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, const FillParams& params = {}) {
-    const std::string fn = "kintsugi::fill_holes: ";
-    if (!(params.split_factor >= 1 && params.split_factor <= 4))
-        throw invalid_input(fn + "split_factor = " + std::to_string(params.split_factor) +
-                            " must lie in [1, 4] (default 4/3)");
-    if (params.max_rounds < 1) throw invalid_input(fn + "max_rounds must be >= 1 (default 30)");
-    if (!(params.fair_delta >= 0) || !std::isfinite(params.fair_delta))
-        throw invalid_input(fn + "fair_delta must be finite and >= 0 (default 1e-8)");
-    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
-    std::vector<Face> faces(nf0);
-    for (Index f = 0; f < nf0; ++f) faces[f] = face_at(mesh, f);
-    std::vector<Vec3> pos(nv0);
-    for (Index v = 0; v < nv0; ++v) pos[v] = vertex_position(mesh, v);
+/// fill_holes on the working copy (positions `pos`, faces `faces`, the mesh's own):
+/// checks and orients the loops, triangulates, refines and fairs them, and gives the
+/// patch in new_pos and new_faces (indices past the existing vertices). One non-template
+/// body that every mesh type shares (the template checks the parameters, reads and appends).
+inline FillResult fill_holes_indexed(const std::vector<Vec3>& pos, std::vector<Face> faces,
+                                     const std::vector<std::vector<Index>>& loops, const FillParams& params,
+                                     const std::string& fn, std::vector<Vec3>& new_pos, std::vector<Face>& new_faces) {
+    const std::size_t nv0 = pos.size(), nf0 = faces.size();
     HalfedgeMesh base;
     try {
         base = HalfedgeMesh::from_faces(pos, faces);
@@ -450,9 +424,7 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
         if (!forward) std::reverse(oriented[li].begin(), oriented[li].end());
     }
 
-    std::vector<Face> new_faces;
-    std::vector<Vec3> new_pos;
-    FillResult out = detail::run_cancellable<FillResult>(params.control, [&](detail::Progress& progress) {
+    return run_cancellable<FillResult>(params.control, [&](Progress& progress) {
         FillResult res;
         // 1. Triangulate every loop; target edge length from the edges at the loop.
         progress.stage("triangulate", 0.0, 0.3);
@@ -467,7 +439,7 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
                 return base.find_halfedge(l[i], l[j]) != HalfedgeMesh::invalid ||
                        base.find_halfedge(l[j], l[i]) != HalfedgeMesh::invalid;
             };
-            const auto tris = detail::hole_triangulation(p, forbidden, progress);
+            const auto tris = hole_triangulation(p, forbidden, progress);
             if (tris.empty()) {
                 res.unfilled_holes.push_back(li);
                 continue;
@@ -502,7 +474,7 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
                 for (Index h = 3 * nf0; h < hm.halfedge_capacity(); ++h) {
                     const Index g = hm.twin(h);
                     if (g == HalfedgeMesh::invalid || g < h || !interior_patch_edge(h)) continue;
-                    if (!detail::is_locally_delaunay(hm, h) && hm.flip(h)) any = true;
+                    if (!is_locally_delaunay(hm, h) && hm.flip(h)) any = true;
                 }
                 progress.check();
                 if (!any) break;
@@ -530,13 +502,13 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
         progress.stage("fair", 0.7, 0.95);
         // Each hole's reach: the box of its loop grown by the box's diagonal.
         std::vector<BoundingBox> reach(filled.size());
-        for (std::size_t k = 0; k < filled.size(); ++k) reach[k] = detail::hole_reach(oriented[filled[k]], pos);
+        for (std::size_t k = 0; k < filled.size(); ++k) reach[k] = hole_reach(oriented[filled[k]], pos);
         auto patch_within_reach = [&](const std::vector<Vec3>& y) {
             for (Index f = nf0; f < hm.face_capacity(); ++f) {
                 if (hm.is_removed_face(f) || patch[f] == HalfedgeMesh::invalid) continue;
                 for (int c = 0; c < 3; ++c) {
                     const Index v = hm.face_vertex(f, c);
-                    if (v >= nv0 && !detail::within_reach(reach[patch[f]], y[v])) return false;
+                    if (v >= nv0 && !within_reach(reach[patch[f]], y[v])) return false;
                 }
             }
             return true;
@@ -556,9 +528,9 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
             // thin-plate system (symmetric positive definite) fairs the patch instead.
             // Only the new vertices move; keep them to restore.
             const std::vector<Vec3> before(x.begin() + static_cast<std::ptrdiff_t>(nv0), x.end());
-            if (detail::bilaplacian_fill(x, topo, free) == 0 || !patch_within_reach(x)) {
+            if (bilaplacian_fill(x, topo, free) == 0 || !patch_within_reach(x)) {
                 std::copy(before.begin(), before.end(), x.begin() + static_cast<std::ptrdiff_t>(nv0));
-                detail::biharmonic_fill(x, topo, free, params.fair_delta);
+                biharmonic_fill(x, topo, free, params.fair_delta);
             }
         }
         progress.check();
@@ -569,6 +541,50 @@ FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, con
         res.timings = progress.finish();
         return res;
     });
+}
+
+}  // namespace detail
+
+/// @brief Closes the given boundary loops with thin-plate patches (Liepa, "Filling holes
+/// in meshes", SGP 2003): triangulation of each loop (minimum area; a loop longer than
+/// detail::min_area_whole_loop vertices is first cut along short chords, so the cost
+/// stays O(n^2) in the loop length), refinement by edge
+/// splits and Delaunay flips until the patch edges are no longer than split_factor times
+/// the surrounding edge length, then the bi-Laplace fairing of the new vertices
+/// (cotangent weights over vertex areas, L²x = 0 on the new vertices, as CGAL's
+/// triangulate_refine_and_fair_hole), which continues the position and slope of the
+/// surface around the hole. The existing vertices and faces are not changed; the new
+/// ones are appended.
+///
+/// @tparam M a TopologyMutableMesh (IndexedMesh, CGAL::Surface_mesh, ...). An
+///         IndexedMesh with normals receives normals for the new vertices (area-weighted).
+/// @param mesh   an oriented 2-manifold, possibly with boundary
+/// @param loops  loops to close, each as from find_boundary_loops (either direction):
+///               consecutive vertices joined by boundary edges
+/// @param params refinement, fairing, cancellation
+/// @throws invalid_input (mesh untouched) when the mesh is not an oriented manifold
+///         (naming the edge or vertex), a loop is shorter than 3 vertices, uses a vertex
+///         out of range, is not a boundary loop (naming the loop and the edge), a vertex is
+///         in two loops, or a parameter is out of range.
+/// @return Status::ok (a loop that cannot be triangulated without duplicating an
+///         existing edge is listed in unfilled_holes, the others are filled);
+///         Status::cancelled: the mesh is untouched.
+template <TopologyMutableMesh M>
+FillResult fill_holes(M& mesh, const std::vector<std::vector<Index>>& loops, const FillParams& params = {}) {
+    const std::string fn = "kintsugi::fill_holes: ";
+    if (!(params.split_factor >= 1 && params.split_factor <= 4))
+        throw invalid_input(fn + "split_factor = " + std::to_string(params.split_factor) +
+                            " must lie in [1, 4] (default 4/3)");
+    if (params.max_rounds < 1) throw invalid_input(fn + "max_rounds must be >= 1 (default 30)");
+    detail::check_fair_delta(params.fair_delta, fn, "fair_delta");
+    const std::size_t nv0 = kintsugi::num_vertices(mesh), nf0 = kintsugi::num_faces(mesh);
+    std::vector<Face> faces(nf0);
+    for (Index f = 0; f < nf0; ++f) faces[f] = face_at(mesh, f);
+    std::vector<Vec3> pos(nv0);
+    for (Index v = 0; v < nv0; ++v) pos[v] = vertex_position(mesh, v);
+    std::vector<Vec3> new_pos;
+    std::vector<Face> new_faces;
+    FillResult out = detail::fill_holes_indexed(pos, std::move(faces), loops, params, fn, new_pos, new_faces);
     if (out.status == Status::cancelled) return out;
     // 4. Append (the existing vertices and faces are untouched).
     detail::append_patch(mesh, new_pos, new_faces);

@@ -30,25 +30,23 @@ namespace kintsugi {
 
 /// Parameters of smooth_taubin.
 struct TaubinParams {
-    /// Number of λ/μ pairs. Nagai et al. (2011) use 30, by which the motion has
-    /// nearly converged.
+    /// Number of λ/μ pairs, >= 0 (default 30; 0 leaves the mesh as it is). Nagai et al.
+    /// (2011) use 30, by which the motion has nearly converged.
     std::size_t iterations = 30;
-    /// Forward (shrinking) step v ← v + λ U(v), in (0, 1].
+    /// Forward (shrinking) step v ← v + λ U(v), in (0, 1] (default 0.5: Nagai et al.'s
+    /// value; 1 moves a vertex onto the mean of its neighbours).
     Scalar lambda = 0.5;
-    /// Backward (inflating) step v ← v + μ U(v), μ < 0. Nagai et al. use μ = −λ
-    /// (their "v − λU′"); Taubin (1995) suggests |μ| slightly above λ (e.g. −0.53)
-    /// for a filter that does not shrink at all.
+    /// Backward (inflating) step v ← v + μ U(v), in [−1, 0) (default −0.5). Nagai et al.
+    /// use μ = −λ (their "v − λU′"); Taubin (1995) suggests |μ| slightly above λ (e.g.
+    /// −0.53) for a filter that does not shrink at all.
     Scalar mu = -0.5;
+    /// Progress callback and stop token (default: none); a cancelled run leaves the mesh untouched.
     RunControl control{};
 };
 
-/// Result of smooth_taubin.
-struct TaubinResult {
-    Status status = Status::ok;
-    /// Vertices allowed to move that have at least one neighbour.
-    std::size_t moved_vertices = 0;
-    std::vector<StageTiming> timings;
-};
+/// Result of smooth_taubin: moved_vertices = the movable vertices that have at least
+/// one neighbour.
+using TaubinResult = VertexSubsetResult;
 
 namespace detail {
 

@@ -4,10 +4,12 @@
 #pragma once
 /// @file vertex_subset.hpp
 /// @brief What the operations that move a chosen subset of a mesh's vertices share
-/// (smooth_taubin, fair_biharmonic, the hole fill): reading the positions with the
-/// finite-coordinate check, checking the per-vertex flags, writing the moved vertices back.
+/// (smooth_taubin, fair_biharmonic, the hole fill): their result, reading the positions
+/// with the finite-coordinate check, checking the per-vertex flags, writing the moved
+/// vertices back.
 
 #include <kintsugi/core/concepts.hpp>
+#include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
@@ -17,6 +19,21 @@
 #include <cstdint>
 #include <string>
 #include <vector>
+
+namespace kintsugi {
+
+/// Result of an operation that moves a chosen subset of a mesh's vertices
+/// (fair_biharmonic: FairResult, smooth_taubin: TaubinResult).
+struct VertexSubsetResult {
+    /// ok, or cancelled (through the parameters' RunControl; the mesh is then untouched).
+    Status status = Status::ok;
+    /// The chosen vertices that have a neighbour: those the operation moves. 0 when
+    /// nothing moved: cancelled, or fair_biharmonic's system could not be factorised.
+    std::size_t moved_vertices = 0;
+    std::vector<StageTiming> timings;  ///< fair_biharmonic: "topology", "solve"; smooth_taubin: "taubin"
+};
+
+}  // namespace kintsugi
 
 namespace kintsugi::detail {
 

@@ -13,6 +13,7 @@
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/concepts.hpp>
+#include <kintsugi/core/disjoint_sets.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
@@ -21,7 +22,6 @@
 
 #include <algorithm>
 #include <cstddef>
-#include <numeric>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -48,24 +48,6 @@ struct TopologyReport {
 };
 
 namespace detail {
-
-/// Union-find with path halving and union by index (deterministic).
-class DisjointSets {
-public:
-    explicit DisjointSets(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), Index{0}); }
-    Index find(Index x) {
-        while (parent_[x] != x) x = parent_[x] = parent_[parent_[x]];
-        return x;
-    }
-    void unite(Index a, Index b) {
-        a = find(a);
-        b = find(b);
-        if (a != b) parent_[std::max(a, b)] = std::min(a, b);
-    }
-
-private:
-    std::vector<Index> parent_;
-};
 
 /// Whether face t runs a -> b.
 inline bool face_runs(const Face& t, Index a, Index b) {
@@ -108,7 +90,7 @@ inline TopologyReport topology_report(const std::vector<Vec3>& vertices, const s
     r.edges = topo.num_edges();
 
     // Components of faces (through shared vertices), over the used vertices.
-    DisjointSets sets(nv);
+    DisjointSets<Index> sets(nv);
     std::vector<char> used(nv, 0);
     for (const Face& t : valid) {
         used[t[0]] = used[t[1]] = used[t[2]] = 1;
@@ -140,7 +122,7 @@ inline TopologyReport topology_report(const std::vector<Vec3>& vertices, const s
     // Non-manifold vertices: the faces around v, linked through the two-face edges at
     // v, form more than one fan. Vertices on a non-manifold edge are already reported
     // through that edge and not counted again (as vcglib's CountNonManifoldVertexFF).
-    std::vector<Index> local;
+    DisjointSets<Index> fans;  // the faces around one vertex, by their rank in vertex_faces(v)
     for (Index v = 0; v < nv; ++v) {
         const auto vf = topo.vertex_faces(v);
         if (vf.size() < 2) continue;
@@ -148,22 +130,14 @@ inline TopologyReport topology_report(const std::vector<Vec3>& vertices, const s
         bool on_nm_edge = false;
         for (Index e : ve) on_nm_edge |= topo.edge_faces(e).size() > 2;
         if (on_nm_edge) continue;
-        local.resize(vf.size());
-        std::iota(local.begin(), local.end(), Index{0});
-        auto find = [&](Index x) {
-            while (local[x] != x) x = local[x] = local[local[x]];
-            return x;
-        };
+        fans.reset(vf.size());
         std::size_t groups = vf.size();
         for (Index e : ve) {
             const auto ef = topo.edge_faces(e);
             if (ef.size() != 2) continue;
-            const Index i = find(static_cast<Index>(std::lower_bound(vf.begin(), vf.end(), ef[0]) - vf.begin()));
-            const Index j = find(static_cast<Index>(std::lower_bound(vf.begin(), vf.end(), ef[1]) - vf.begin()));
-            if (i != j) {
-                local[std::max(i, j)] = std::min(i, j);
-                --groups;
-            }
+            const auto i = static_cast<Index>(std::lower_bound(vf.begin(), vf.end(), ef[0]) - vf.begin());
+            const auto j = static_cast<Index>(std::lower_bound(vf.begin(), vf.end(), ef[1]) - vf.begin());
+            if (fans.unite(i, j)) --groups;
         }
         if (groups > 1) ++r.non_manifold_vertices;
     }

@@ -11,6 +11,7 @@
 
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/control.hpp>
+#include <kintsugi/core/disjoint_sets.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
@@ -158,23 +159,13 @@ inline std::size_t orient_mst(const std::vector<Vec3>& pts, const KnnTable& t, s
     progress.update(0.2);
 
     // --- connected components and their seeds (top-most point)
-    // (A plain union-find: boost/pending/disjoint_sets.hpp fails to compile once
-    // compressed_sparse_row_graph.hpp is included first, a known Boost lookup clash.)
-    std::vector<NodeIndex> parent(n);
-    for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<NodeIndex>(i);
-    auto find = [&](NodeIndex x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];  // path halving
-        return x;
-    };
+    DisjointSets<NodeIndex> sets(n);
     for (std::size_t i = 0; i < n; ++i)
         for (std::size_t e = offset[i]; e < offset[i] + degree[i]; ++e)
-            if (adj[e] > i) {
-                const NodeIndex a = find(static_cast<NodeIndex>(i)), b = find(adj[e]);
-                if (a != b) parent[std::max(a, b)] = std::min(a, b);
-            }
+            if (adj[e] > i) sets.unite(static_cast<NodeIndex>(i), adj[e]);
     std::vector<NodeIndex> seed_of_root(n, std::numeric_limits<NodeIndex>::max());
     for (std::size_t i = 0; i < n; ++i) {
-        const NodeIndex r = find(static_cast<NodeIndex>(i));
+        const NodeIndex r = sets.find(static_cast<NodeIndex>(i));
         NodeIndex& s = seed_of_root[r];
         if (s == std::numeric_limits<NodeIndex>::max() || pts[i].z() > pts[s].z()) s = static_cast<NodeIndex>(i);
     }
