@@ -407,7 +407,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         std::vector<Index> again, next;
         // (colour, tile, surfel): colour in the top 3 bits, the tile's packed coordinates below.
         std::vector<std::pair<std::uint64_t, Index>> order;
-        std::vector<std::size_t> tile_start;
+        std::vector<std::size_t> tile_start, tile_first;
         std::vector<TileOutput> outs;
         for (std::size_t round = 0; round < cfg.rounds; ++round) {
             ++res.rounds;
@@ -438,28 +438,42 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                         for (std::size_t k = tile_start[t]; k < tile_start[t + 1]; ++k)
                             fill_surfel(order[k].second, out, scratch);
                     }, 1);
+                    // Merge in tile order: counters and offsets first, then the arrays
+                    // filled in parallel (each tile its own slots), the cells serially.
+                    const std::size_t first_new = P.size();
+                    std::size_t added = 0;
                     for (std::size_t t = t0; t < t1; ++t) {
                         const TileOutput& out = outs[t - t0];
                         res.gaps_filled += out.gaps;
                         res.not_placed += out.not_placed;
                         res.radius_redos += out.redos;
                         again.insert(again.end(), out.again.begin(), out.again.end());
-                        if (P.size() + out.p.size() > cfg.max_output)
+                        if (first_new + added + out.p.size() > cfg.max_output)
                             throw invalid_input(
                                 "kintsugi::fill_surfel_gaps: the fill reached params.max_output_surfels = " +
                                 std::to_string(cfg.max_output) + " surfels at level " + std::to_string(level) +
                                 "; pass a larger radius or raise the cap");
-                        for (std::size_t k = 0; k < out.p.size(); ++k) {
-                            const Index id = P.size();
-                            cells.insert({out.p[k], out.n[k], out.r[k], id});
-                            P.push_back(out.p[k]);
-                            N.push_back(out.n[k]);
-                            R.push_back(out.r[k]);
-                            rn0.push_back(out.rn0[k]);
-                            reach_in.push_back(out.reach_in[k]);
-                            open.push_back(0);
-                            next.push_back(id);
-                        }
+                        added += out.p.size();
+                    }
+                    const std::size_t total = first_new + added;
+                    for (auto* v : {&P, &N}) v->resize(total);
+                    for (auto* v : {&R, &rn0, &reach_in}) v->resize(total);
+                    open.resize(total, 0);
+                    tile_first.resize(t1 - t0 + 1);
+                    tile_first[0] = first_new;
+                    for (std::size_t t = t0; t < t1; ++t) tile_first[t - t0 + 1] = tile_first[t - t0] + outs[t - t0].p.size();
+                    parallel_for(t0, t1, [&](std::size_t t) {
+                        const TileOutput& out = outs[t - t0];
+                        const std::size_t base = tile_first[t - t0];
+                        std::copy(out.p.begin(), out.p.end(), P.begin() + static_cast<std::ptrdiff_t>(base));
+                        std::copy(out.n.begin(), out.n.end(), N.begin() + static_cast<std::ptrdiff_t>(base));
+                        std::copy(out.r.begin(), out.r.end(), R.begin() + static_cast<std::ptrdiff_t>(base));
+                        std::copy(out.rn0.begin(), out.rn0.end(), rn0.begin() + static_cast<std::ptrdiff_t>(base));
+                        std::copy(out.reach_in.begin(), out.reach_in.end(), reach_in.begin() + static_cast<std::ptrdiff_t>(base));
+                    }, 64);
+                    for (std::size_t id = first_new; id < total; ++id) {
+                        cells.insert({P[id], N[id], R[id], id});
+                        next.push_back(id);
                     }
                     done_total += tile_start[t1] - tile_start[t0];
                     progress.update(0.9 * double(done_total) /
@@ -511,12 +525,12 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
     res.surfels.points.resize(P.size());
     res.surfels.normals.resize(P.size());
     res.surfels.radii.resize(P.size());
-    for (std::size_t k = 0; k < P.size(); ++k) {
+    parallel_for(0, P.size(), [&](std::size_t k) {
         const std::size_t i = out_index(k);
         res.surfels.points[i] = cfg.frame.to_world(P[k]);
         res.surfels.normals[i] = N[k];
         res.surfels.radii[i] = cfg.frame.to_world((k < R_given.size() ? R_given[k] : R[k]) * fine);
-    }
+    }, 4096);
 }
 
 }  // namespace detail::surfel_fill
