@@ -884,7 +884,7 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
         // limit has more: a cluster of near-duplicates that merge_distance kept (2,000
         // copies 1e-9 apart at merge_distance 0: one cell of 6,000 centres, whose dense
         // fallback solve is cubic in its size). Such a cell keeps an evenly spread subset
-        // of its centres in index order, whole groups of a point and its offsets (its
+        // of its centres in their (Morton) order, whole groups of a point and its offsets (its
         // value constraints stay consistent), at most cap of them; the field still
         // interpolates the kept ones, and the others lie within the cell's 2^-20 of the
         // root from them.
