@@ -212,15 +212,12 @@ struct RBFOctreeData {
         return leaves[static_cast<std::size_t>(nodes[c].leaf)];
     }
 
-    /// Whether x lies in node n's box enlarged to `factor` x its side, and the weight
-    /// coordinates t_k = |x_k - c_k| / (factor side / 2).
-    [[nodiscard]] bool in_box(const Node& n, const Vec3& x, Scalar factor, Vec3& t) const {
+    /// Whether x lies in node n's box enlarged to `factor` x its side (open box).
+    [[nodiscard]] bool in_box(const Node& n, const Vec3& x, Scalar factor) const {
         const Scalar h = factor * n.side / 2;
         const Vec3 c = node_center(n);
-        for (int k = 0; k < 3; ++k) {
-            t[k] = std::abs(x[k] - c[k]) / h;
-            if (!(t[k] < 1)) return false;
-        }
+        for (int k = 0; k < 3; ++k)
+            if (!(std::abs(x[k] - c[k]) / h < 1)) return false;
         return true;
     }
 
@@ -236,10 +233,9 @@ struct RBFOctreeData {
             for (int j = std::max(0, r[1] - 1); j <= std::min(root_count[1] - 1, r[1] + 1); ++j)
                 for (int i = std::max(0, r[0] - 1); i <= std::min(root_count[0] - 1, r[0] + 1); ++i)
                     stack[top++] = root_index(i, j, k);
-        Vec3 t;
         while (top > 0) {
             const Node& n = nodes[stack[--top]];
-            if (!in_box(n, x, alpha, t)) continue;
+            if (!in_box(n, x, alpha)) continue;
             if (n.child >= 0) {
                 for (std::size_t o = 0; o < 8 && top < 256; ++o) stack[top++] = static_cast<std::size_t>(n.child) + o;
                 continue;
