@@ -48,6 +48,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -129,6 +131,20 @@ struct LocalFit {
     }
 };
 
+/// The samples in a ball, copied next to each other (internal). A fit at a point
+/// whose support lies strictly inside the ball selects its neighbours here instead of
+/// querying the tree, and gets the same ones (ties by index alike): the surfel fill
+/// projects several points around each surfel with one tree query.
+struct LocalSamples {
+    Vec3 centre = Vec3::Zero();
+    Scalar radius = 0;                ///< every sample within this distance of centre is here
+    std::vector<std::size_t> index;   ///< sample indices
+    std::vector<Vec3> points, normals;
+    std::vector<Scalar> d2;           ///< scratch of a selection
+    std::vector<std::uint32_t> slots; ///< scratch of a selection
+    std::size_t hits = 0, misses = 0; ///< fits served here / by the tree
+};
+
 }  // namespace detail::pss
 
 /// @brief The MLS surface of an oriented point set (APSS, Guennebaud & Gross 2007;
@@ -186,17 +202,23 @@ public:
 
     /// @cond internal
     [[nodiscard]] SurfaceProjection project_unchecked(const Vec3& x) const {
+        return project_unchecked(x, nullptr, params_.tolerance);
+    }
+    /// The projection with the neighbours taken from `local` where it holds them (the
+    /// result is the same as without it) and the given convergence tolerance.
+    [[nodiscard]] SurfaceProjection project_unchecked(const Vec3& x, detail::pss::LocalSamples* local,
+                                                      Scalar tolerance) const {
         SurfaceProjection out;
         Vec3 y = x;
         detail::pss::LocalFit f;
         for (std::size_t it = 0; it < params_.max_iterations; ++it) {
-            f = fit(y);
+            f = fit(y, local);
             if (!f.valid) break;
             const Vec3 next = f.project(y);
             const Scalar step = (next - y).norm();
             y = next;
             out.iterations = it + 1;
-            if (step <= params_.tolerance * f.h) {
+            if (step <= tolerance * f.h) {
                 out.converged = true;
                 break;
             }
@@ -206,6 +228,22 @@ public:
         const Scalar len = g.norm();
         out.normal = len > 0 ? Vec3(g / len) : Vec3::Zero();
         return out;
+    }
+    /// Fills `local` with the samples within `radius` of `centre` (tree order).
+    void gather_local(const Vec3& centre, Scalar radius, detail::pss::LocalSamples& local) const {
+        thread_local std::vector<Neighbor> nn;
+        tree_.radius_search_squared(centre, radius * radius, nn, false);
+        const std::size_t m = nn.size();
+        local.centre = centre;
+        local.radius = radius;
+        local.index.resize(m);
+        local.points.resize(m);
+        local.normals.resize(m);
+        for (std::size_t j = 0; j < m; ++j) {
+            local.index[j] = nn[j].index;
+            local.points[j] = tree_.point(nn[j].index);
+            local.normals[j] = normals_[nn[j].index];
+        }
     }
     /// @endcond
 
@@ -253,18 +291,67 @@ private:
                                 ": the query point has a NaN or infinite coordinate");
     }
 
-    /// The local fit at x (Guennebaud & Gross 2007, eq. for u_q, u_l, u_c; Pratt-normalised).
-    [[nodiscard]] detail::pss::LocalFit fit(const Vec3& x) const {
+    /// The neighbours of a fit at x from `local`: the k nearest (ties by index), widened
+    /// to every sample within min_support_factor x the nearest distance; `nn` holds
+    /// slots of `local`. False when the support may reach beyond local's ball.
+    bool local_neighbours(const Vec3& x, detail::pss::LocalSamples& local, std::vector<Neighbor>& nn) const {
+        const std::size_t m = local.points.size(), k = params_.k;
+        // A sample outside the ball is at least radius - t from x; the margin covers rounding.
+        const Scalar t = (x - local.centre).norm(), room = local.radius * (1 - 1e-9) - t;
+        if (m < k || !(room > 0)) return false;
+        local.d2.resize(m);
+        local.slots.resize(m);
+        for (std::size_t j = 0; j < m; ++j) {
+            const Vec3& p = local.points[j];
+            const Scalar dx = p.x() - x.x(), dy = p.y() - x.y(), dz = p.z() - x.z();
+            local.d2[j] = dx * dx + dy * dy + dz * dz;
+            local.slots[j] = static_cast<std::uint32_t>(j);
+        }
+        const auto by_distance = [&](std::uint32_t a, std::uint32_t b) {
+            return local.d2[a] < local.d2[b] || (local.d2[a] == local.d2[b] && local.index[a] < local.index[b]);
+        };
+        std::nth_element(local.slots.begin(), local.slots.begin() + static_cast<std::ptrdiff_t>(k - 1), local.slots.end(),
+                         by_distance);
+        const Scalar dk2 = local.d2[local.slots[k - 1]];
+        if (!(dk2 < room * room)) return false;
+        nn.clear();
+        Scalar d1 = dk2;
+        for (std::size_t j = 0; j < k; ++j) {
+            const std::uint32_t sl = local.slots[j];
+            nn.push_back({sl, local.d2[sl]});
+            d1 = std::min(d1, local.d2[sl]);
+        }
+        if (params_.min_support_factor > 0) {
+            const Scalar wide2 = params_.min_support_factor * params_.min_support_factor * d1;
+            if (wide2 > dk2) {
+                if (!(wide2 < room * room)) return false;
+                nn.clear();
+                for (std::size_t j = 0; j < m; ++j)
+                    if (local.d2[j] <= wide2) nn.push_back({j, local.d2[j]});
+            }
+        }
+        return true;
+    }
+
+    /// The local fit at x (Guennebaud & Gross 2007, eq. for u_q, u_l, u_c; Pratt-normalised),
+    /// with the neighbours from `local` when it holds them.
+    [[nodiscard]] detail::pss::LocalFit fit(const Vec3& x, detail::pss::LocalSamples* local = nullptr) const {
         thread_local std::vector<Neighbor> nn;
-        tree_.knn(x, params_.k, nn);
         detail::pss::LocalFit f;
         f.origin = x;
-        if (nn.empty()) return f;
-        if (params_.min_support_factor > 0) {
-            const Scalar wide2 = params_.min_support_factor * params_.min_support_factor * nn.front().squared_distance;
-            if (wide2 > nn.back().squared_distance) tree_.radius_search_squared(x, wide2, nn);
+        const bool from_local = local && local_neighbours(x, *local, nn);
+        if (local) ++(from_local ? local->hits : local->misses);
+        if (!from_local) {
+            tree_.knn(x, params_.k, nn);
+            if (nn.empty()) return f;
+            if (params_.min_support_factor > 0) {
+                const Scalar wide2 =
+                    params_.min_support_factor * params_.min_support_factor * nn.front().squared_distance;
+                if (wide2 > nn.back().squared_distance) tree_.radius_search_squared(x, wide2, nn, false);
+            }
         }
-        const Scalar h2 = nn.back().squared_distance;
+        Scalar h2 = 0;
+        for (const Neighbor& nb : nn) h2 = std::max(h2, nb.squared_distance);
         f.h = std::sqrt(h2);
         Scalar sw = 0, spn = 0, spp = 0;
         Vec3 sp = Vec3::Zero(), sn = Vec3::Zero();
@@ -276,8 +363,8 @@ private:
                     if (t <= 0) continue;
                     w = t * t;
                 }
-                const Vec3 p = tree_.point(nb.index) - x;
-                const Vec3& nrm = normals_[nb.index];
+                const Vec3 p = (from_local ? local->points[nb.index] : tree_.point(nb.index)) - x;
+                const Vec3& nrm = from_local ? local->normals[nb.index] : normals_[nb.index];
                 sw += w;
                 sp += w * p;
                 sn += w * nrm;
