@@ -5,7 +5,6 @@
 // against the reference mesh B, both directions, relative to B's diagonal.
 #include "common.hpp"
 
-#include <kintsugi/io/read.hpp>
 #include <kintsugi/metrics/distance.hpp>
 
 #include <cmath>
@@ -58,9 +57,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         kcli::Stopwatch sw;
         kintsugi::ReadInfo ia, ib;
         ctx.doing("reading " + o->a);
-        const kintsugi::IndexedMesh a = kintsugi::read_mesh(o->a, {}, &ia);
+        const kintsugi::IndexedMesh a = kcli::read_mesh(o->a, &ia);
         ctx.doing("reading " + o->b);
-        const kintsugi::IndexedMesh b = kintsugi::read_mesh(o->b, {}, &ib);
+        const kintsugi::IndexedMesh b = kcli::read_mesh(o->b, &ib);
         ctx.add_timing("read", sw.seconds());
         if (b.faces.empty())
             throw kintsugi::invalid_input(o->b + ": the reference has no faces; compare needs a reference mesh");

@@ -8,8 +8,6 @@
 #include "common.hpp"
 
 #include <kintsugi/complete/example_completion.hpp>
-#include <kintsugi/io/read.hpp>
-#include <kintsugi/io/write.hpp>
 
 #include <limits>
 #include <memory>
@@ -63,7 +61,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ctx.check_output(o->output, kintsugi::OutputKind::mesh);
         kcli::Stopwatch sw;
         ctx.doing("reading " + o->input);
-        kintsugi::IndexedMesh mesh = kintsugi::read_mesh(o->input);
+        kintsugi::IndexedMesh mesh = kcli::read_mesh(o->input);
         ctx.add_timing("read", sw.seconds());
 
         kintsugi::CompletionParams params = o->params;
@@ -78,7 +76,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
 
         sw = kcli::Stopwatch();
         ctx.doing("writing " + o->output);
-        kintsugi::write_mesh(o->output, mesh, ctx.write_options());
+        kcli::write_mesh(o->output, mesh, ctx.write_options());
         ctx.add_timing("write", sw.seconds());
 
         auto& j = ctx.json();

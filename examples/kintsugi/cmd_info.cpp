@@ -5,7 +5,6 @@
 // of a point cloud.
 #include "common.hpp"
 
-#include <kintsugi/io/read.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
 
@@ -28,7 +27,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         kcli::Stopwatch sw;
         kintsugi::ReadInfo ri;
         ctx.doing("reading " + o->input);
-        const kintsugi::IndexedMesh mesh = kintsugi::read_mesh(o->input, {}, &ri);
+        const kintsugi::IndexedMesh mesh = kcli::read_mesh(o->input, &ri);
         ctx.add_timing("read", sw.seconds());
 
         auto& j = ctx.json();

@@ -5,8 +5,6 @@
 // (and consistently orient) point normals.
 #include "reconstruct_cli.hpp"
 
-#include <kintsugi/io/read.hpp>
-#include <kintsugi/io/write.hpp>
 #include <kintsugi/normals/estimate_normals.hpp>
 
 #include <memory>
@@ -43,7 +41,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ctx.check_output(o->output, kintsugi::OutputKind::point_cloud);
         kcli::Stopwatch sw;
         ctx.doing("reading " + o->input);
-        kintsugi::PointCloud cloud = kintsugi::read_point_cloud(o->input);
+        kintsugi::PointCloud cloud = kcli::read_point_cloud(o->input);
         ctx.add_timing("read", sw.seconds());
         if (cloud.points.size() < o->params.k)
             throw kintsugi::invalid_input(o->input + " has " + kcli::grouped(cloud.points.size()) +
@@ -62,7 +60,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
 
         sw = kcli::Stopwatch();
         ctx.doing("writing " + o->output);
-        kintsugi::write_point_cloud(o->output, cloud, ctx.write_options());
+        kcli::write_point_cloud(o->output, cloud, ctx.write_options());
         ctx.add_timing("write", sw.seconds());
 
         auto& j = ctx.json();

@@ -6,8 +6,6 @@
 // extra outliers drawn uniformly in the bounding box enlarged by 10 %.
 #include "common.hpp"
 
-#include <kintsugi/io/read.hpp>
-#include <kintsugi/io/write.hpp>
 
 #include <cmath>
 #include <memory>
@@ -38,7 +36,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     return [o, &ctx] {
         ctx.check_output(o->output, kintsugi::OutputKind::point_cloud);
         ctx.doing("reading " + o->input);
-        kintsugi::PointCloud cloud = kintsugi::read_point_cloud(o->input);
+        kintsugi::PointCloud cloud = kcli::read_point_cloud(o->input);
         if (cloud.points.empty()) throw kintsugi::invalid_input(o->input + ": the file holds no points");
         const bool normals = kintsugi::has_normals(cloud);
         cloud.radii.clear();
@@ -71,7 +69,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         }
         ctx.check_interrupted();
         ctx.doing("writing " + o->output);
-        kintsugi::write_point_cloud(o->output, cloud, ctx.write_options());
+        kcli::write_point_cloud(o->output, cloud, ctx.write_options());
         auto& j = ctx.json();
         j["command"] = "perturb";
         j["input"] = o->input;

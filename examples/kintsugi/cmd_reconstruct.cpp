@@ -8,8 +8,6 @@
 // [--resolution N] [--no-blend]`: the octree triharmonic RBF surface (clean points).
 #include "reconstruct_cli.hpp"
 
-#include <kintsugi/io/read.hpp>
-#include <kintsugi/io/write.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/reconstruct/pu_graphcut.hpp>
 
@@ -50,7 +48,7 @@ kintsugi::TopologyReport write_surface(Context& ctx, const std::string& output, 
     Stopwatch sw;
     ctx.check_interrupted();
     ctx.doing("writing " + output);
-    kintsugi::write_mesh(output, m, ctx.write_options());
+    kcli::write_mesh(output, m, ctx.write_options());
     ctx.add_timing("write", sw.seconds());
     return rep;
 }
@@ -103,7 +101,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         kcli::Stopwatch sw;
         kintsugi::ReadInfo info;
         ctx.doing("reading " + o->input);
-        kintsugi::PointCloud cloud = kintsugi::read_point_cloud(o->input, &info);
+        kintsugi::PointCloud cloud = kcli::read_point_cloud(o->input, &info);
         ctx.add_timing("read", sw.seconds());
         const bool estimated = kcli::reconstruct::estimate_missing_normals(ctx, cloud, o->input);
 

@@ -8,8 +8,6 @@
 // parameters and detection (FeatureBilateralParams::paper()); options given win.
 #include "common.hpp"
 
-#include <kintsugi/io/read.hpp>
-#include <kintsugi/io/write.hpp>
 #include <kintsugi/smooth/feature_bilateral.hpp>
 
 #include <limits>
@@ -72,7 +70,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         if (!o->features.empty()) ctx.check_output(o->features, kintsugi::OutputKind::polylines);
         kcli::Stopwatch sw;
         ctx.doing("reading " + o->input);
-        kintsugi::IndexedMesh mesh = kintsugi::read_mesh(o->input);
+        kintsugi::IndexedMesh mesh = kcli::read_mesh(o->input);
         mesh.normals.clear();  // positions move; stale normals would be written
         ctx.add_timing("read", sw.seconds());
 
@@ -101,10 +99,10 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         if (!o->features.empty()) {
             // The features were found on the input: write them at the smoothed positions.
             ctx.doing("writing " + o->features);
-            kintsugi::write_polylines(o->features, mesh.vertices, r.features.sharp_edges, ctx.write_options());
+            kcli::write_polylines(o->features, mesh.vertices, r.features.sharp_edges, ctx.write_options());
         }
         ctx.doing("writing " + o->output);
-        kintsugi::write_mesh(o->output, mesh, ctx.write_options());
+        kcli::write_mesh(o->output, mesh, ctx.write_options());
         ctx.add_timing("write", sw.seconds());
 
         auto& j = ctx.json();

@@ -33,12 +33,17 @@
 // std::exception): main prints `kintsugi: error: <message>` and exits 1
 // (2 for usage errors, 128 + signal number when interrupted by SIGINT/SIGTERM/SIGHUP).
 
+// First, so that no translation unit of the tool compiles the Eigen solvers that
+// eigen_dense.cpp and eigen_sparse.cpp instantiate once (docs/build.md).
+#include <kintsugi/core/eigen_instances.hpp>
+
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/io/write.hpp>
 
 #include <CLI/CLI.hpp>
 
+#include <array>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -300,6 +305,16 @@ struct CommandEntry {
 /// All registered subcommands, sorted by name when the tool starts.
 std::vector<CommandEntry>& registry();
 bool register_command(const char* name, const char* description, SetupFn setup);
+
+// The readers and writers, compiled once in io.cpp (about 10 s of CPU per
+// translation unit that calls them at -O3): a command's file holds its method only.
+kintsugi::IndexedMesh read_mesh(const std::string& path, kintsugi::ReadInfo* info = nullptr);
+kintsugi::PointCloud read_point_cloud(const std::string& path, kintsugi::ReadInfo* info = nullptr);
+void write_mesh(const std::string& path, const kintsugi::IndexedMesh& mesh, const kintsugi::WriteOptions& options);
+void write_point_cloud(const std::string& path, const kintsugi::PointCloud& cloud,
+                       const kintsugi::WriteOptions& options);
+void write_polylines(const std::string& path, const std::vector<kintsugi::Vec3>& points,
+                     const std::vector<std::array<kintsugi::Index, 2>>& edges, const kintsugi::WriteOptions& options);
 
 /// `n` with thousands separators (1,234,567), for messages.
 inline std::string grouped(std::size_t n) {
