@@ -85,4 +85,13 @@ inline void check_energy_monotone(const ks::CompletionResult& r) {
         }
 }
 
+// CGAL's fair fill (triangulate_refine_and_fair_hole) of each loop (vertex indices, as
+// find_boundary_loops gives them); returns the new vertices (test_complete_cgal_peer.cpp).
+std::vector<ks::Vec3> cgal_fill(const ks::IndexedMesh& in, const std::vector<std::vector<ks::Index>>& loops);
+
 }  // namespace kintsugi_test::completion
+
+// The completion on IndexedMesh is compiled once per test program, in test_complete.cpp
+// (its explicit instantiation); the other files of the program only call it.
+extern template kintsugi::CompletionResult kintsugi::complete_holes_example_based<kintsugi::IndexedMesh>(
+    kintsugi::IndexedMesh&, const kintsugi::CompletionParams&);

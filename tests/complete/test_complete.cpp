@@ -27,6 +27,10 @@
 
 namespace ks = kintsugi;
 using namespace kintsugi_test::completion;
+
+// Declared extern in complete_fixtures.hpp: the one instantiation of the test program.
+template kintsugi::CompletionResult kintsugi::complete_holes_example_based<kintsugi::IndexedMesh>(
+    kintsugi::IndexedMesh&, const kintsugi::CompletionParams&);
 using SurfaceMesh = CGAL::Surface_mesh<CGAL::Exact_predicates_inexact_constructions_kernel::Point_3>;
 
 namespace {

@@ -3,7 +3,9 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // Example-based completion (complete/example_completion.hpp) beside CGAL's
 // triangulate_refine_and_fair_hole on the same holes (a *_peer.cpp file: comparisons
-// with peer libraries, which the sanitizer build may skip).
+// with peer libraries, which the sanitizer build may skip). CGAL's fill is compiled in
+// test_complete_cgal_peer.cpp and the completion in test_complete.cpp (complete_fixtures.hpp),
+// so that no translation unit holds both.
 #include "complete/complete_fixtures.hpp"
 
 #include <kintsugi/complete/example_completion.hpp>
@@ -11,14 +13,6 @@
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/adapters/indexed_mesh.hpp>
-#include <kintsugi/adapters/cgal.hpp>
-
-#ifndef CGAL_EIGEN3_ENABLED
-#define CGAL_EIGEN3_ENABLED 1  // CGAL's fairing needs Eigen
-#endif
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
-#include <CGAL/Surface_mesh.h>
 #include <doctest/doctest.h>
 
 #include <Eigen/Eigenvalues>
@@ -33,7 +27,6 @@
 
 namespace ks = kintsugi;
 using namespace kintsugi_test::completion;
-using SurfaceMesh = CGAL::Surface_mesh<CGAL::Exact_predicates_inexact_constructions_kernel::Point_3>;
 
 namespace {
 
@@ -54,25 +47,6 @@ ks::IndexedMesh ribbed_cylinder() {
             m.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
         }
     return m;
-}
-
-// CGAL's fair fill of every selected hole; returns the new vertices.
-std::vector<ks::Vec3> cgal_fill(const ks::IndexedMesh& in, const std::vector<std::vector<ks::Index>>& loops) {
-    SurfaceMesh sm;
-    ks::assign_mesh(sm, in);
-    std::vector<ks::Vec3> out;
-    for (const auto& l : loops) {
-        const auto h = sm.halfedge(SurfaceMesh::Vertex_index(static_cast<SurfaceMesh::size_type>(l[1])),
-                                   SurfaceMesh::Vertex_index(static_cast<SurfaceMesh::size_type>(l[0])));
-        auto border = sm.is_border(h) ? h : sm.opposite(h);
-        REQUIRE(sm.is_border(border));
-        std::vector<SurfaceMesh::Face_index> pf;
-        std::vector<SurfaceMesh::Vertex_index> pv;
-        CGAL::Polygon_mesh_processing::triangulate_refine_and_fair_hole(sm, border, std::back_inserter(pf),
-                                                                        std::back_inserter(pv));
-        for (auto v : pv) out.emplace_back(sm.point(v).x(), sm.point(v).y(), sm.point(v).z());
-    }
-    return out;
 }
 
 }  // namespace

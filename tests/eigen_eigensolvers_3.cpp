@@ -1,0 +1,9 @@
+// This Source Code Form is subject to the terms of the Mozilla Public
+// License, v. 2.0. If a copy of the MPL was not distributed with this
+// file, You can obtain one at https://mozilla.org/MPL/2.0/.
+// Part of the dense Eigen solvers of kintsugi/core/eigen_instances.hpp (see eigen_eigensolvers_2.cpp).
+#include <kintsugi/core/eigen_instances.hpp>
+
+template class Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>;
+template Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>&
+Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>::compute<Eigen::Matrix3d>(const Eigen::EigenBase<Eigen::Matrix3d>&, int);
