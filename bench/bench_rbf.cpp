@@ -102,15 +102,35 @@ void BM_rbf_nmax(benchmark::State& state) {
 BENCHMARK(BM_rbf_nmax)->ArgsProduct({{100000, 500000}, {50, 100, 250, 500, 1000}})->Iterations(1)->UseRealTime()
     ->Unit(benchmark::kSecond);
 
+/// Process CPU time per stage, read at each change of stage name in the progress
+/// callback (called on the calling thread): counters "<stage>_cpu_s".
+struct StageCpu {
+    std::vector<std::pair<std::string, double>> marks;
+    ks::RunControl control() {
+        return {.progress = [this](const ks::ProgressEvent& e) {
+            if (marks.empty() || marks.back().first != e.stage) marks.emplace_back(std::string(e.stage), process_cpu_seconds());
+            return true;
+        }};
+    }
+    void counters(benchmark::State& state, double end) const {
+        for (std::size_t i = 0; i < marks.size(); ++i)
+            if (marks[i].first != "done")
+                state.counters[marks[i].first + "_cpu_s"] = (i + 1 < marks.size() ? marks[i + 1].second : end) - marks[i].second;
+    }
+};
+
 // Time against N: the whole reconstruction at resolution 256 (defaults).
 void BM_rbf_reconstruct(benchmark::State& state) {
     const auto& pts = samples(static_cast<std::size_t>(state.range(0)));
     ks::RBFReconstructResult r;
     double cpu = 0;
+    StageCpu stages;
     for (auto _ : state) {
+        stages.marks.clear();
         const double c0 = process_cpu_seconds();
-        r = ks::reconstruct_rbf_octree(pts);
+        r = ks::reconstruct_rbf_octree(pts, {.control = stages.control()});
         cpu = process_cpu_seconds() - c0;
+        stages.counters(state, c0 + cpu);
     }
     state.counters["cpu_s"] = cpu;
     state.counters["peak_rss_mb"] = ks::bench::peak_rss_mb();
@@ -121,6 +141,40 @@ void BM_rbf_reconstruct(benchmark::State& state) {
 }
 BENCHMARK(BM_rbf_reconstruct)->Arg(100000)->Arg(500000)->Arg(1000000)->Iterations(1)->UseRealTime()
     ->Unit(benchmark::kSecond);
+
+// Dense collinear points: a sphere of 3,000 random points plus N evenly spaced points
+// on a segment through it (normals turning about the segment), fit only. The cost of
+// every stage should grow linearly with N (docs/methods/rbf_octree.md, "Not done").
+void BM_rbf_line(benchmark::State& state) {
+    const auto n = static_cast<std::size_t>(state.range(0));
+    ks::PointCloud c;
+    std::uint64_t seed = 7;
+    auto uniform = [&seed] { return static_cast<double>(ks::detail::splitmix64(seed++) >> 11) * 0x1p-53; };
+    for (int i = 0; i < 3000; ++i) {
+        const double z = 2 * uniform() - 1, a = 2 * 3.141592653589793 * uniform(), r = std::sqrt(1 - z * z);
+        c.points.emplace_back(r * std::cos(a), r * std::sin(a), z);
+        c.normals.push_back(c.points.back());
+    }
+    const ks::Vec3 a(-0.5, -0.3, -0.2), b(0.5, 0.3, 0.2);
+    const ks::Vec3 n1 = (b - a).cross(ks::Vec3(0, 0, 1)).normalized(), n2 = (b - a).normalized().cross(n1);
+    for (std::size_t i = 0; i < n; ++i) {
+        c.points.push_back(a + (static_cast<double>(i) + 0.5) / static_cast<double>(n) * (b - a));
+        c.normals.push_back(std::cos(0.7 * static_cast<double>(i)) * n1 + std::sin(0.7 * static_cast<double>(i)) * n2);
+    }
+    ks::RBFOctreeResult r;
+    double cpu = 0;
+    for (auto _ : state) {
+        const double c0 = process_cpu_seconds();
+        r = ks::RBFOctreeField::build(c);
+        cpu = process_cpu_seconds() - c0;
+    }
+    state.counters["cpu_s"] = cpu;
+    state.counters["cpu_us_per_point"] = 1e6 * cpu / static_cast<double>(c.points.size());
+    state.counters["live_cells"] = static_cast<double>(r.stats.live_cells);
+    state.counters["ill_conditioned"] = static_cast<double>(r.stats.ill_conditioned_cells);
+    stage_counters(state, r.timings);
+}
+BENCHMARK(BM_rbf_line)->Arg(20000)->Arg(80000)->Arg(320000)->Iterations(1)->UseRealTime()->Unit(benchmark::kSecond);
 
 // One global dense system over all 3N centres (what the octree avoids), and the octree
 // fit at the same N.
