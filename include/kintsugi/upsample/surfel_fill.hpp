@@ -176,6 +176,11 @@ inline double expected_output(const std::vector<Vec3>& P, Scalar diag, Scalar ra
 /// 134K the new surfels stay within 1.6e-7 of the diagonal (99th percentile) of the
 /// converged surface, their mean distance to the mesh 0.0020 % either way.
 constexpr Scalar projection_tolerance = 0.01;
+/// A back-projection that moves a new centre farther than this many of its radii has jumped
+/// to another sheet of the MLS surface (thin parts; seen 20-320 r on bunny00 134K): the
+/// disk is not placed. 4, not 1: on the kitten scan (5K points, radius 0.01 of the
+/// diagonal) a legitimate projection moves a disk by 1-4 r, and 1 r left a gap open.
+constexpr Scalar jump_radii = 4;
 /// A new surfel closer than this times its radius to an existing centre is not placed.
 constexpr Scalar redundant_fraction = 0.1;
 /// Most tiles one parallel pass takes before its new surfels are merged and progress
@@ -361,12 +366,12 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                 for (const Vec2& c : s.pf.centres) {
                     const Vec3 x = pi + c.x() * e1 + c.y() * e2;
                     const SurfaceProjection pr = mls.project_unchecked(x, &s.local, projection_tolerance);
-                    // A disk moved farther than its radius by the projection, or turned
+                    // A disk moved farther than jump_radii radii by the projection, or turned
                     // away from i, no longer meets the gap it was placed for: the MLS
                     // surface jumped to another sheet (thin parts, creases; seen 300 r
                     // away on bunny00). Not placed; i stays listed as open.
                     if (!pr.point.allFinite() || !(pr.normal.squaredNorm() > 0.5) ||
-                        !((pr.point - x).squaredNorm() <= rn * rn) || !(pr.normal.dot(N[i]) > 0)) {
+                        !((pr.point - x).squaredNorm() <= jump_radii * jump_radii * rn * rn) || !(pr.normal.dot(N[i]) > 0)) {
                         ++dropped;
                         continue;
                     }
