@@ -12,7 +12,8 @@
 //  3. accuracy table on ../shared/data/guided_denoising (Block0.4, SharpSphere0.3,
 //     Twelve0.5Impulsive): mean face-normal error (degrees) and vertex RMS (mean edge
 //     lengths) of ours, features = false, Taubin and CGAL's smooth_shape, each peer at the
-//     best setting of a small sweep. Printed at the end; skipped when the folder is absent.
+//     best setting of a small sweep. Printed at the end; skipped when the folder is absent;
+//  4. BM_noise_table: shapes x generated noise, with Taubin and smooth_shape (README table).
 //
 // Measured 2026-12-01 on this 2-core machine with the other work on it paused,
 // 589,824 faces:
@@ -34,6 +35,12 @@
 // 2026-12-02, with the edge straightening (filters 1-2 again after the face filters):
 //   ours Block0.4 5.26/0.143, SharpSphere0.3 8.51/0.142, Twelve0.5Imp. 7.99/0.156; the noise
 //   table (README, with the paper preset's column) took 12.7 s CPU (load 6-9).
+// 2026-12-02 evening (a ~1.6x slower 2-core VM, never idle; with the noise estimate):
+//   589,824 faces 10.0 s CPU / 10.4 s wall at load 5.3 (noise level 0.93 s, features 4.73 s,
+//   face smoothing 4.01 s), 9.2 s CPU / 25.9 s wall at load 8.3; peak growth 166 -> 641 MB.
+//   smooth_shape swept in |e|^2 (best_smooth_shape): Block0.4 13.48/0.415 (0.1x3),
+//   SharpSphere0.3 11.84/0.387 (0.3x1), Twelve0.5Imp. 9.73/0.252 (0.1x3). The noise table with
+//   its smooth_shape column and the strong-noise rule: 569 s wall at load 5-8 (README).
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
@@ -103,6 +110,29 @@ double process_cpu_s() {
     getrusage(RUSAGE_SELF, &u);
     return double(u.ru_utime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_sec) +
            1e-6 * double(u.ru_stime.tv_usec);
+}
+
+// CGAL's smooth_shape at its best (by normal error) over a sweep of time step and
+// iteration count. Its time step is in squared length units (mass matrix of areas against
+// a cotangent Laplacian), so the sweep is in |e|² of the noisy mesh: t|e|² for t in
+// {0.03, 0.1, 0.3, 1, 3} × {1, 3, 10} iterations. `setting` receives "t×it".
+ks::IndexedMesh best_smooth_shape(const ks::IndexedMesh& noisy, const ks::IndexedMesh& clean, std::string* setting) {
+    const double L = ks::mean_edge_length(noisy);
+    ks::IndexedMesh best;
+    double be = 1e9;
+    for (double t : {0.03, 0.1, 0.3, 1.0, 3.0})
+        for (unsigned it : {1u, 3u, 10u}) {
+            auto m = noisy;
+            ss::cgal_smooth_shape(m, t * L * L, it);
+            const double e = ks::denoise_metrics(m, clean).mean_normal_angle_deg;
+            if (e < be) {
+                be = e, best = std::move(m);
+                char buf[32];
+                std::snprintf(buf, sizeof buf, "%gx%u", t, it);
+                *setting = buf;
+            }
+        }
+    return best;
 }
 
 // Peak memory of one run at 147,456 and 589,824 faces, each in a child process of its
@@ -195,7 +225,7 @@ void accuracy_table() {
     }
     std::printf("\nmean face-normal error (deg) / vertex RMS (mean edge lengths), default parameters;\n"
                 "peers at the best (by normal error) of: Taubin 10/30/50 iterations (lambda 0.5, mu -0.5),\n"
-                "smooth_shape time {0.003, 0.01, 0.03} x {1, 3, 10} iterations\n");
+                "smooth_shape time {0.03, 0.1, 0.3, 1, 3} |e|^2 x {1, 3, 10} iterations\n");
     std::printf("%-20s %16s %16s %16s %16s %16s  sharp-edge P / R\n", "mesh", "noisy", "ours",
                 "features=false", "Taubin", "smooth_shape");
     for (const char* name : {"Block0.4", "SharpSphere0.3", "Twelve0.5Impulsive"}) {
@@ -212,26 +242,21 @@ void accuracy_table() {
         (void)ks::smooth_feature_bilateral(ours);
         (void)ks::smooth_feature_bilateral(plain, {.features = false});
         ks::IndexedMesh best_t, best_s;
-        double bt = 1e9, bs = 1e9;
+        double bt = 1e9;
         for (std::size_t it : {10, 30, 50}) {
             auto t = noisy;
             (void)ks::smooth_taubin(t, {}, {.iterations = it});
             const double e = ks::denoise_metrics(t, clean).mean_normal_angle_deg;
             if (e < bt) bt = e, best_t = t;
         }
-        for (double time : {0.003, 0.01, 0.03})
-            for (unsigned it : {1u, 3u, 10u}) {
-                auto t = noisy;
-                ss::cgal_smooth_shape(t, time, it);
-                const double e = ks::denoise_metrics(t, clean).mean_normal_angle_deg;
-                if (e < bs) bs = e, best_s = t;
-            }
+        std::string ss_setting;
+        best_s = best_smooth_shape(noisy, clean, &ss_setting);
         const auto pr = ss::compare_edges(ks::detect_sharp_features(noisy).features.sharp_edges,
                                           ss::crease_edges(clean, 60));
         const double vol = 100 * (ks::signed_volume(ours) / ks::signed_volume(noisy) - 1);
-        std::printf("%-20s %16s %16s %16s %16s %16s  %.3f / %.3f  (volume %+.2f %%)\n", name, cell(noisy).c_str(),
-                    cell(ours).c_str(), cell(plain).c_str(), cell(best_t).c_str(), cell(best_s).c_str(),
-                    pr.precision, pr.recall, vol);
+        std::printf("%-20s %16s %16s %16s %16s %16s  %.3f / %.3f  (volume %+.2f %%; smooth_shape %s)\n", name,
+                    cell(noisy).c_str(), cell(ours).c_str(), cell(plain).c_str(), cell(best_t).c_str(),
+                    cell(best_s).c_str(), pr.precision, pr.recall, vol, ss_setting.c_str());
     }
 }
 
@@ -241,7 +266,8 @@ void accuracy_table() {
 // (deg) / vertex RMS (|e|) of the defaults (d and face iterations from the estimated
 // noise), of the fixed defaults before it (d = 0.14, 3 face iterations), of the paper's
 // published parameters and detection (FeatureBilateralParams::paper()), and of the best
-// Taubin (10/20/50 iterations, by normal error); the estimated noise against the true
+// Taubin (10/20/50 iterations, by normal error) and of CGAL's smooth_shape (best_smooth_shape
+// above); the estimated noise against the true
 // (rms of the displacements along the normals), both in clean |e|. Run alone with
 // --benchmark_filter=noise_table.
 ks::IndexedMesh add_impulsive_noise(const ks::IndexedMesh& m, double sigma, std::uint32_t seed, double* rms) {
@@ -273,8 +299,8 @@ void BM_noise_table(benchmark::State& state) {
         {"fertility", shared / "libigl" / "fertility.off"}};
     for (auto _ : state) {
         std::printf("\nnoise table: normal error (deg) / vertex RMS (|e|); sigma estimated / true (|e|)\n");
-        std::printf("%-14s %-6s %15s %15s %15s %19s %13s\n", "shape", "noise", "defaults", "d 0.14, 3 it.", "paper",
-                    "best Taubin", "sigma est/true");
+        std::printf("%-14s %-6s %15s %15s %15s %19s %24s %13s\n", "shape", "noise", "defaults", "d 0.14, 3 it.",
+                    "paper", "best Taubin", "best smooth_shape", "sigma est/true");
         for (const auto& [name, path] : shapes) {
             if (!fs::exists(path)) {
                 std::printf("%-14s skipped: %s not found\n", name, path.string().c_str());
@@ -306,13 +332,16 @@ void BM_noise_table(benchmark::State& state) {
                     const double e = ks::denoise_metrics(t, clean).mean_normal_angle_deg;
                     if (e < bt) bt = e, bit = it, best = t;
                 }
-                char label[16], taubin[48];
+                std::string ss_setting;
+                const auto shape = best_smooth_shape(noisy, clean, &ss_setting);
+                char label[16], taubin[48], cgal[64];
                 if (k > 0) std::snprintf(label, sizeof label, "%.1f", k);
                 else std::snprintf(label, sizeof label, "impuls");
                 std::snprintf(taubin, sizeof taubin, "%s (%d)", cell(best).c_str(), bit);
-                std::printf("%-14s %-6s %15s %15s %15s %19s %6.3f/%.3f   d %.3f, %zu it.\n", name, label,
-                            cell(ours).c_str(), cell(fixed).c_str(), cell(paper).c_str(), taubin, r.noise.sigma / L,
-                            truth / L, r.d, r.face_iterations);
+                std::snprintf(cgal, sizeof cgal, "%s (%s)", cell(shape).c_str(), ss_setting.c_str());
+                std::printf("%-14s %-6s %15s %15s %15s %19s %24s %6.3f/%.3f   d %.3f, %zu it.\n", name, label,
+                            cell(ours).c_str(), cell(fixed).c_str(), cell(paper).c_str(), taubin, cgal,
+                            r.noise.sigma / L, truth / L, r.d, r.face_iterations);
                 std::fflush(stdout);
             }
         }

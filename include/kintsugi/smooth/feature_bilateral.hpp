@@ -101,6 +101,11 @@
 /// Explicit values are used as given and skip the estimate; the estimate and the
 /// values used are in the result (`noise`, `d`, `face_iterations`). Measurements in
 /// docs/methods/feature_bilateral.md.
+/// Strong noise (face_iterations unset and r ≥ 0.47, about 0.7|e| of Gaussian noise and
+/// above): at least 20 filter-3 passes per face iteration (instead of 10), and the
+/// detection's pre-smoothing with at least 6 passes (3) and c = 3 for its normal filter
+/// (2); `strong_noise` and `normal_iterations` in the result say what was used. Measured
+/// on the Block at 0.7|e|: 14.1° → 11.0°; the sharp edges' P/R 0.33/0.60 → 0.53/0.75.
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
@@ -234,6 +239,11 @@ struct FeatureBilateralResult {
     bool noise_estimated = false;  ///< whether `noise` was estimated (d or face_iterations unset)
     Scalar d = 0;                  ///< the face range scale used
     std::size_t face_iterations = 0;  ///< the face iterations used
+    std::size_t normal_iterations = 0;  ///< the filter-3 passes per face iteration used
+    /// Whether the strong-noise rule raised the normal passes and the detection's
+    /// pre-smoothing (face_iterations unset and estimated σ ≥ 0.47|e|; see "Parameters from
+    /// the data").
+    bool strong_noise = false;
 };
 
 namespace detail::fbs {
@@ -311,6 +321,16 @@ struct DataScales {
     Scalar d;
     std::size_t face_iterations;
 };
+/// Strong noise (r ≥ 0.47, about 0.7|e| of Gaussian noise and above; see "Parameters from
+/// the data"): at least 20 filter-3 passes per face iteration, and the detection's
+/// pre-smoothing with at least 6 passes and a normal filter of c = 3.
+inline constexpr Scalar strong_noise_ratio = 0.47;
+inline void raise_for_strong_noise(std::size_t& normal_iterations, SharpFeatureParams& detection) {
+    normal_iterations = std::max<std::size_t>(normal_iterations, 20);
+    detection.presmooth_iterations = std::max<std::size_t>(detection.presmooth_iterations, 6);
+    detection.prefilter_scale = std::max<Scalar>(detection.prefilter_scale, 3);
+}
+
 inline DataScales scales_from_noise(Scalar r) {
     const Scalar over = std::max<Scalar>(r - Scalar(0.38), 0);
     return {std::max<Scalar>(0.14, Scalar(0.5) * (r - Scalar(0.05))),
@@ -470,7 +490,7 @@ template <MutableTriangleMesh M>
 FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralParams& params = {}) {
     constexpr const char* fn = "kintsugi::smooth_feature_bilateral";
     namespace fbs = detail::fbs;
-    const SharpFeatureParams& detection = params.detection;
+    SharpFeatureParams detection = params.detection;
     fbs::check_positive(fn, "a", params.a);
     fbs::check_positive(fn, "b", params.b);
     fbs::check_positive(fn, "c", params.c);
@@ -512,12 +532,15 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         const fbs::DataScales auto_scales = fbs::scales_from_noise(result.noise.sigma / L);
         result.d = params.d ? *params.d : auto_scales.d;
         result.face_iterations = params.face_iterations ? *params.face_iterations : auto_scales.face_iterations;
+        result.normal_iterations = params.normal_iterations;
+        result.strong_noise = !params.face_iterations && result.noise.sigma >= fbs::strong_noise_ratio * L;
+        if (result.strong_noise) fbs::raise_for_strong_noise(result.normal_iterations, detection);
         result.noise.sigma = so.frame.to_world(result.noise.sigma);
         result.noise.mean_edge_length = so.frame.to_world(result.noise.mean_edge_length);
         result.noise.clean_edge_length = so.frame.to_world(result.noise.clean_edge_length);
         const std::size_t face_iterations = result.face_iterations;
         const fbs::FilterSettings fs{params.a, params.b, params.c, result.d, params.edge_iterations,
-                                     face_iterations, params.features, params.normal_iterations,
+                                     face_iterations, params.features, result.normal_iterations,
                                      params.vertex_iterations};
         fbs::Barriers barriers;
         fbs::Workspace ws;
