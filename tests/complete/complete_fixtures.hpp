@@ -6,6 +6,7 @@
 // CGAL (test_complete_peer.cpp): cutting holes, distances to the truth, checks.
 #include "test_data.hpp"
 #include "mesh/edit_fixtures.hpp"
+#include "peers/cgal_fair_fill.hpp"
 
 #include <kintsugi/complete/example_completion.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
@@ -86,8 +87,10 @@ inline void check_energy_monotone(const ks::CompletionResult& r) {
 }
 
 // CGAL's fair fill (triangulate_refine_and_fair_hole) of each loop (vertex indices, as
-// find_boundary_loops gives them); returns the new vertices (test_complete_cgal_peer.cpp).
-std::vector<ks::Vec3> cgal_fill(const ks::IndexedMesh& in, const std::vector<std::vector<ks::Index>>& loops);
+// find_boundary_loops gives them); returns the new vertices (tests/peers/cgal_fair_fill.cpp).
+inline std::vector<ks::Vec3> cgal_fill(const ks::IndexedMesh& in, const std::vector<std::vector<ks::Index>>& loops) {
+    return kintsugi_test::cgal_fair_fill(in, loops).new_vertices;
+}
 
 }  // namespace kintsugi_test::completion
 

@@ -4,8 +4,8 @@
 // Example-based completion (complete/example_completion.hpp) beside CGAL's
 // triangulate_refine_and_fair_hole on the same holes (a *_peer.cpp file: comparisons
 // with peer libraries, which the sanitizer build may skip). CGAL's fill is compiled in
-// test_complete_cgal_peer.cpp and the completion in test_complete.cpp (complete_fixtures.hpp),
-// so that no translation unit holds both.
+// tests/peers/cgal_fair_fill.cpp and the completion in test_complete.cpp
+// (complete_fixtures.hpp), so that no translation unit holds both.
 #include "complete/complete_fixtures.hpp"
 
 #include <kintsugi/complete/example_completion.hpp>

@@ -2,13 +2,11 @@
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // Boundary loops, the outer-border rule and the thin-plate hole fill (CGAL's
-// triangulate_refine_and_fair_hole as the peer).
-#ifndef CGAL_EIGEN3_ENABLED
-#define CGAL_EIGEN3_ENABLED 1
-#endif
+// triangulate_refine_and_fair_hole as the peer: tests/peers/cgal_fair_fill.hpp).
 #include <doctest/doctest.h>
 
 #include "mesh/edit_fixtures.hpp"
+#include "peers/cgal_fair_fill.hpp"
 #include "test_data.hpp"
 
 #include <kintsugi/adapters/cgal.hpp>
@@ -18,7 +16,6 @@
 #include <kintsugi/metrics/topology_report.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Surface_mesh.h>
 
 #include <algorithm>
@@ -261,28 +258,19 @@ TEST_CASE("fill_holes on a sphere with a cap cut out: distance to the sphere, be
     }
     our_mean /= static_cast<double>(r.new_vertices);
 
-    SurfaceMesh sm = convert<SurfaceMesh>(in);
-    SurfaceMesh::Halfedge_index border;
-    for (auto h : sm.halfedges())
-        if (sm.is_border(h)) {
-            border = h;
-            break;
-        }
-    std::vector<SurfaceMesh::Face_index> pf;
-    std::vector<SurfaceMesh::Vertex_index> pv;
-    const auto cg = CGAL::Polygon_mesh_processing::triangulate_refine_and_fair_hole(
-        sm, border, std::back_inserter(pf), std::back_inserter(pv));
-    CHECK(std::get<0>(cg));
+    const kintsugi_test::CgalFairFill cg = kintsugi_test::cgal_fair_fill(in, {loops.loops[0].vertices});
+    CHECK(cg.ok);
+    REQUIRE(!cg.new_vertices.empty());
     double cgal_max = 0, cgal_mean = 0;
-    for (auto v : pv) {
-        const double d = std::abs(std::sqrt(CGAL::to_double((sm.point(v) - CGAL::ORIGIN).squared_length())) - 1);
+    for (const ks::Vec3& p : cg.new_vertices) {
+        const double d = std::abs(p.norm() - 1);
         cgal_max = std::max(cgal_max, d);
         cgal_mean += d;
     }
-    cgal_mean /= static_cast<double>(pv.size());
+    cgal_mean /= static_cast<double>(cg.new_vertices.size());
     MESSAGE("cap hole z > 0.8 (radius 0.6) on the unit sphere: kintsugi " << r.new_vertices << " new vertices, "
             << r.new_faces << " faces, distance to the sphere max " << our_max << " mean " << our_mean
-            << ", apex z " << top << "; CGAL triangulate_refine_and_fair_hole " << pv.size()
+            << ", apex z " << top << "; CGAL triangulate_refine_and_fair_hole " << cg.new_vertices.size()
             << " new vertices, max " << cgal_max << " mean " << cgal_mean);
     // The patch continues the sphere: measured largest distance 1.97 % of the radius, mean
     // 0.62 % (CGAL's fill: 1.78 % / 0.63 %; before the cotangent bi-Laplace fairing,
