@@ -72,6 +72,7 @@ void run_rbf(const RbfOptions& options, const RbfRun& run, Context& ctx, kintsug
         {"padded_cells", st.padded_cells},
         {"capped_cells", st.capped_cells},
         {"capped_centres", st.capped_centres},
+        {"crease_offsets", st.crease_offsets},
         {"field_evaluations", r.isosurface.field_evaluations},
         {"vertices", rep.vertices},
         {"faces", rep.faces},
