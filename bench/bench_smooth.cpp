@@ -112,29 +112,6 @@ double process_cpu_s() {
            1e-6 * double(u.ru_stime.tv_usec);
 }
 
-// CGAL's smooth_shape at its best (by normal error) over a sweep of time step and
-// iteration count. Its time step is in squared length units (mass matrix of areas against
-// a cotangent Laplacian), so the sweep is in |e|² of the noisy mesh: t|e|² for t in
-// {0.03, 0.1, 0.3, 1, 3} × {1, 3, 10} iterations. `setting` receives "t×it".
-ks::IndexedMesh best_smooth_shape(const ks::IndexedMesh& noisy, const ks::IndexedMesh& clean, std::string* setting) {
-    const double L = ks::mean_edge_length(noisy);
-    ks::IndexedMesh best;
-    double be = 1e9;
-    for (double t : {0.03, 0.1, 0.3, 1.0, 3.0})
-        for (unsigned it : {1u, 3u, 10u}) {
-            auto m = noisy;
-            ss::cgal_smooth_shape(m, t * L * L, it);
-            const double e = ks::denoise_metrics(m, clean).mean_normal_angle_deg;
-            if (e < be) {
-                be = e, best = std::move(m);
-                char buf[32];
-                std::snprintf(buf, sizeof buf, "%gx%u", t, it);
-                *setting = buf;
-            }
-        }
-    return best;
-}
-
 // Peak memory of one run at 147,456 and 589,824 faces, each in a child process of its
 // own (fork) so that neither size sees the other's peak: the growth of the peak
 // resident set (VmHWM) above the resident set just before the call, with the input
@@ -250,7 +227,7 @@ void accuracy_table() {
             if (e < bt) bt = e, best_t = t;
         }
         std::string ss_setting;
-        best_s = best_smooth_shape(noisy, clean, &ss_setting);
+        best_s = ss::best_smooth_shape(noisy, clean, &ss_setting);
         const auto pr = ss::compare_edges(ks::detect_sharp_features(noisy).features.sharp_edges,
                                           ss::crease_edges(clean, 60));
         const double vol = 100 * (ks::signed_volume(ours) / ks::signed_volume(noisy) - 1);
@@ -266,8 +243,8 @@ void accuracy_table() {
 // (deg) / vertex RMS (|e|) of the defaults (d and face iterations from the estimated
 // noise), of the fixed defaults before it (d = 0.14, 3 face iterations), of the paper's
 // published parameters and detection (FeatureBilateralParams::paper()), and of the best
-// Taubin (10/20/50 iterations, by normal error) and of CGAL's smooth_shape (best_smooth_shape
-// above); the estimated noise against the true
+// Taubin (10/20/50 iterations, by normal error) and of CGAL's smooth_shape
+// (ss::best_smooth_shape); the estimated noise against the true
 // (rms of the displacements along the normals), both in clean |e|. Run alone with
 // --benchmark_filter=noise_table.
 ks::IndexedMesh add_impulsive_noise(const ks::IndexedMesh& m, double sigma, std::uint32_t seed, double* rms) {
@@ -333,7 +310,7 @@ void BM_noise_table(benchmark::State& state) {
                     if (e < bt) bt = e, bit = it, best = t;
                 }
                 std::string ss_setting;
-                const auto shape = best_smooth_shape(noisy, clean, &ss_setting);
+                const auto shape = ss::best_smooth_shape(noisy, clean, &ss_setting);
                 char label[16], taubin[48], cgal[64];
                 if (k > 0) std::snprintf(label, sizeof label, "%.1f", k);
                 else std::snprintf(label, sizeof label, "impuls");

@@ -610,7 +610,7 @@ TEST_CASE("real data: Block0.4 (guided denoising) beats Taubin, smooth_shape and
     (void)ks::smooth_feature_bilateral(plain, {.features = false});
     const auto m_plain = ks::denoise_metrics(plain, clean);
     // Peers, each at its best setting of a small sweep (by normal error).
-    ks::DenoiseMetrics m_taubin{1e9, 1e9, 0}, m_shape{1e9, 1e9, 0};
+    ks::DenoiseMetrics m_taubin{1e9, 1e9, 0};
     for (std::size_t it : {10, 30, 50}) {
         auto t = noisy;
         (void)ks::smooth_taubin(t, {}, {.iterations = it});
@@ -618,14 +618,7 @@ TEST_CASE("real data: Block0.4 (guided denoising) beats Taubin, smooth_shape and
         if (mt.mean_normal_angle_deg < m_taubin.mean_normal_angle_deg) m_taubin = mt;
     }
     // smooth_shape's time step is in squared length units: the sweep is in |e|² (as in bench_smooth).
-    const double Ln = ks::mean_edge_length(noisy);
-    for (double time : {0.03, 0.1, 0.3, 1.0, 3.0})
-        for (unsigned it : {1u, 3u, 10u}) {
-            auto t = noisy;
-            ss::cgal_smooth_shape(t, time * Ln * Ln, it);
-            const auto mt = ks::denoise_metrics(t, clean);
-            if (mt.mean_normal_angle_deg < m_shape.mean_normal_angle_deg) m_shape = mt;
-        }
+    const auto m_shape = ks::denoise_metrics(ss::best_smooth_shape(noisy, clean), clean);
     const auto m_noisy = ks::denoise_metrics(noisy, clean);
     MESSAGE("Block0.4 normal error (deg) / vertex rms (|e|): noisy " << m_noisy.mean_normal_angle_deg << " / "
             << m_noisy.vertex_rms / L << ", ours " << m_ours.mean_normal_angle_deg << " / " << m_ours.vertex_rms / L
