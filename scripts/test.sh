@@ -73,7 +73,7 @@ finish_release_tests() {
   return $status
 }
 # If a later step fails, the optimised suite still finishes and its log is shown.
-trap 'rc=$?; if [ -n "$release_tests" ]; then echo "== a step failed; the optimised suite runs to its end" >&2; finish_release_tests || true; fi; exit $rc' EXIT
+trap 'rc=$?; if [ -n "$release_tests" ]; then echo "== a step failed; the optimised suite runs to its end" >&2; finish_release_tests || true; fi; rm -f "$times_file"; exit $rc' EXIT
 if [ $sanitize -eq 1 ]; then
   test_suite build/release >build/release/ctest.log 2>&1 &
   release_tests=$!
