@@ -4,7 +4,7 @@
 // `kintsugi reconstruct IN OUT --method pu-graphcut [--max-level 8] [--epsilon E]
 // [--k 10] [--labeling graphcut|sign] [--inward-normals] [--json]`: a closed,
 // outward-oriented manifold surface from (possibly outlier-ridden) points.
-// `--method rbf [--n-max 250] [--overlap 1.35] [--activity 1.05] [--smoothing L]
+// `--method rbf [--n-max 100] [--overlap 1.35] [--activity 1.05] [--smoothing L]
 // [--resolution N] [--no-blend]`: the octree triharmonic RBF surface (clean points).
 #include "reconstruct_cli.hpp"
 

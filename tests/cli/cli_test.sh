@@ -89,9 +89,9 @@ expect 0 "reconstruct at 1e200" -- "$bin" reconstruct "$work/kitten_huge.xyz" "$
 json_check "1e200: one closed surface" "j['components']==1 and j['closed'] and j['vertices']>500"
 # ---- reconstruct --method rbf: defaults from RBFOctreeParams, one closed surface, the paper's evaluation
 expect 0 "reconstruct --method rbf" -- "$bin" reconstruct "$work/kitten.xyz" "$work/rbf.ply" --method rbf --resolution 64 --json
-json_check "rbf: closed surface and counts" "j['parameters']['method']=='rbf' and j['parameters']['n_max']==250 and abs(j['parameters']['overlap']-1.35)<1e-12 and abs(j['parameters']['activity']-1.05)<1e-12 and j['parameters']['smoothing']==0 and j['parameters']['blend'] is True and j['points']==5210 and j['live_cells']>0 and j['live_cells']+j['dead_cells']==j['cells'] and j['max_points_per_cell']<=270 and j['ill_conditioned_cells']==0 and j['capped_cells']==0 and j['capped_centres']==0 and j['padded_cells']<=j['live_cells'] and 0<=j['crease_offsets']<=2*j['points'] and j['components']==1 and j['closed'] and j['manifold'] and j['vertices']>1000 and 'rbf_solve' in j['timings']"
-expect 0 "reconstruct --method rbf --no-blend --smoothing" -- "$bin" reconstruct "$work/kitten.xyz" "$work/rbf2.ply" --method rbf --resolution 48 --no-blend --smoothing 0.01 --n-max 100 --json
-json_check "rbf: options reach the fit" "j['parameters']['blend'] is False and j['parameters']['smoothing']==0.01 and j['parameters']['n_max']==100 and j['max_points_per_cell']<=120 and j['closed']"
+json_check "rbf: closed surface and counts" "j['parameters']['method']=='rbf' and j['parameters']['n_max']==100 and abs(j['parameters']['overlap']-1.35)<1e-12 and abs(j['parameters']['activity']-1.05)<1e-12 and j['parameters']['smoothing']==0 and j['parameters']['blend'] is True and j['points']==5210 and j['live_cells']>0 and j['live_cells']+j['dead_cells']==j['cells'] and j['max_points_per_cell']<=120 and j['ill_conditioned_cells']==0 and j['capped_cells']==0 and j['capped_centres']==0 and j['padded_cells']<=j['live_cells'] and 0<=j['crease_offsets']<=2*j['points'] and j['components']==1 and j['closed'] and j['manifold'] and j['vertices']>1000 and 'rbf_solve' in j['timings']"
+expect 0 "reconstruct --method rbf --no-blend --smoothing" -- "$bin" reconstruct "$work/kitten.xyz" "$work/rbf2.ply" --method rbf --resolution 48 --no-blend --smoothing 0.01 --n-max 60 --json
+json_check "rbf: options reach the fit" "j['parameters']['blend'] is False and j['parameters']['smoothing']==0.01 and j['parameters']['n_max']==60 and j['max_points_per_cell']<=80 and j['closed']"
 expect 0 "reconstruct --method rbf, normals estimated" -- "$bin" reconstruct "$mesh" "$work/rbf3.ply" --method rbf --resolution 32 --json
 json_check "rbf: estimated normals" "j['normals_estimated'] is True and j['points']==1839 and j['faces']>0"
 
@@ -157,7 +157,7 @@ json_check "seed reported unwrapped" "j['parameters']['seed'] == 184467440737095
 # The help shows the library's defaults.
 expect 0 "reconstruct --help" -- "$bin" reconstruct --help
 if grep -Eq -- "--smoothing [^=]*=30( |$)" "$work/out" && grep -Eq -- "--epsilon [^=]*=0.004( |$)" "$work/out"; then ok; else bad "reconstruct help defaults: $(grep -- '--smoothing\|--epsilon' "$work/out")"; fi
-if grep -Eq -- "--n-max [^=]*=250( |$)" "$work/out" && grep -Eq -- "--overlap [^=]*=1.35( |$)" "$work/out" && grep -Eq -- "--resolution [^=]*=256( |$)" "$work/out"; then ok; else bad "reconstruct rbf help defaults: $(grep -- '--n-max\|--overlap\|--resolution' "$work/out")"; fi
+if grep -Eq -- "--n-max [^=]*=100( |$)" "$work/out" && grep -Eq -- "--overlap [^=]*=1.35( |$)" "$work/out" && grep -Eq -- "--resolution [^=]*=256( |$)" "$work/out"; then ok; else bad "reconstruct rbf help defaults: $(grep -- '--n-max\|--overlap\|--resolution' "$work/out")"; fi
 
 # ---- complete: bunny.off with one hole cut around vertex 300 (faces whose centroid is within 6 % of the diagonal)
 "$PY" - "$mesh" "$work/holey.off" <<'PYEOF'
