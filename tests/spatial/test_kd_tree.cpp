@@ -184,6 +184,29 @@ TEST_CASE("KdTree nearest matches brute force, ties by lowest index") {
     for (const auto& q : random_points(100, 6)) CHECK(rtree.nearest(q).index == brute_knn(rp, q, 1)[0].index);
 }
 
+TEST_CASE("KdTree any_other_within_squared matches brute force (strict, one point excluded)") {
+    const auto pts = grid_points(5);
+    const ks::KdTree tree(pts);
+    // Point 0 at the origin, its face neighbours at squared distance 1: strict, so not within 1.
+    CHECK_FALSE(tree.any_other_within_squared(pts[0], 1.0, 0));
+    CHECK(tree.any_other_within_squared(pts[0], std::nextafter(1.0, 2.0), 0));
+    CHECK_FALSE(tree.any_other_within_squared(pts[0], 0.5, 0));
+    CHECK(tree.any_other_within_squared(pts[0], 0.5, 1));  // point 0 itself counts when not excluded
+    const auto rp = random_points(2000, 11);
+    const ks::KdTree rtree(rp);
+    const auto queries = random_points(200, 12);
+    for (std::size_t qi = 0; qi < queries.size(); ++qi) {
+        const std::size_t ex = qi * 7;
+        const double r2 = sq_dist(queries[qi], rp[ex]);  // "is another point nearer than rp[ex]?"
+        bool want = false;
+        for (std::size_t j = 0; j < rp.size(); ++j)
+            if (j != ex && sq_dist(queries[qi], rp[j]) < r2) want = true;
+        CHECK(rtree.any_other_within_squared(queries[qi], r2, ex) == want);
+        CHECK(rtree.any_other_within_squared(queries[qi], r2, ex) == (rtree.nearest(queries[qi]).index != ex));
+    }
+    CHECK_FALSE(ks::KdTree(std::vector<ks::Vec3>{}).any_other_within_squared(ks::Vec3(0, 0, 0), 1.0, 0));
+}
+
 TEST_CASE("empty KdTree: queries find nothing, nearest throws") {
     const ks::KdTree empty_built(std::vector<ks::Vec3>{});
     const ks::KdTree defaulted;

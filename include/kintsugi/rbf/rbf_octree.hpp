@@ -668,8 +668,9 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
         const std::vector<Vec3>& sp = tree.points();
         const std::size_t ns = sp.size();
         // Phase B, Carr's test of both offsets: d is halved while another point is
-        // strictly nearer to p_i ± d n_i than p_i is (one nearest-point query per try:
-        // cheaper, measured, than one radius query of 2d around p_i).
+        // strictly nearer to p_i ± d n_i than p_i is (per try a search of the ball around
+        // q through p_i that stops at the first other point: cheaper, measured, than the
+        // nearest point to q and than one radius query of 2d around p_i).
         std::vector<std::array<Scalar, 2>> off(ns);           // d of the + and - offsets (0: dropped)
         std::vector<std::array<std::uint8_t, 2>> shrunk(ns);  // whether d was halved
         for (std::size_t b0 = 0; b0 < ns; b0 += point_block) {
@@ -684,9 +685,8 @@ inline RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std::vector
                     shrunk[i][s] = 0;
                     for (int it = 0; it < 9; ++it) {
                         const Vec3 q = p + sign * d * sn[i];
-                        const Neighbor nn = tree.nearest(q);
                         const Scalar own = (q - p).squaredNorm();
-                        if (nn.index == i || !(nn.squared_distance < own)) {
+                        if (!tree.any_other_within_squared(q, own, i)) {
                             off[i][s] = d;
                             break;
                         }

@@ -63,6 +63,21 @@ struct KdRadiusCollector {
     }
     [[nodiscard]] Scalar worstDist() const { return bound; }
 };
+/// nanoflann result set that stops at the first point other than `exclude` strictly
+/// within the squared radius.
+struct KdAnyOther {
+    Scalar squared_radius;
+    std::size_t exclude;
+    bool found = false;
+    [[nodiscard]] std::size_t size() const { return found ? 1 : 0; }
+    [[nodiscard]] bool full() const { return true; }
+    bool addPoint(Scalar d2, std::size_t i) {
+        if (i == exclude || !(d2 < squared_radius)) return true;
+        found = true;
+        return false;
+    }
+    [[nodiscard]] Scalar worstDist() const { return squared_radius; }
+};
 }  // namespace detail
 
 /// Options of the KdTree (aggregate; field order is API, append only).
@@ -182,6 +197,19 @@ public:
         std::vector<Neighbor> out;
         radius_search_squared(q, squared_radius, out);
         return out;
+    }
+
+    /// Whether a point other than `exclude` lies strictly within `squared_radius` of q
+    /// (squared distance < squared_radius): a radius search that stops at the first such
+    /// point, e.g. "is another point nearer to q than point i is" (pass i's squared
+    /// distance and i). False for an empty tree.
+    /// @throws invalid_input if q has a NaN or infinite coordinate.
+    [[nodiscard]] bool any_other_within_squared(const Vec3& q, Scalar squared_radius, std::size_t exclude) const {
+        require_finite(q, "any_other_within_squared");
+        if (pts().empty()) return false;
+        detail::KdAnyOther rs{squared_radius, exclude};
+        impl_->index->findNeighbors(rs, q.data(), nanoflann::SearchParams(32, 0, false));
+        return rs.found;
     }
 
     /// The leaf (bucket) size the tree was built with.
