@@ -120,11 +120,12 @@ inline bool covered_fast(Scalar r, const std::vector<Circle>& circles, std::vect
     for (std::size_t k = 0; k < circles.size(); ++k) {
         const Circle& c = circles[k];
         const Scalar d2 = c.c.squaredNorm(), rho2 = c.rho * c.rho;
-        const Scalar d = std::sqrt(d2);
-        if (d + r <= c.rho) return true;  // the exact sweep stops there too
-        if (d >= r + c.rho || d + c.rho <= r || d == 0) continue;
-        // The two points of both boundaries: a c ± b c⊥.
-        const Scalar a = (r2 + d2 - rho2) / (2 * d2), b2 = r2 / d2 - a * a;
+        // Leaving out a circle only makes this test stricter: the far ones go first,
+        // without a square root or a division.
+        if (d2 >= (r + c.rho) * (r + c.rho) || d2 == 0) continue;
+        if (c.rho > r && std::sqrt(d2) + r <= c.rho) return true;  // the exact sweep stops there too
+        // The two points of both boundaries: a c ± b c⊥ (none when one circle holds the other).
+        const Scalar inv = 1 / d2, a = (r2 + d2 - rho2) * inv / 2, b2 = r2 * inv - a * a;
         if (!(b2 > 0)) continue;
         const Scalar b = std::sqrt(b2);
         const Scalar px = a * c.c.x(), py = a * c.c.y(), qx = -b * c.c.y(), qy = b * c.c.x();
@@ -132,20 +133,25 @@ inline bool covered_fast(Scalar r, const std::vector<Circle>& circles, std::vect
         ends.push_back({px - qx, py - qy, static_cast<int>(k)});
     }
     if (ends.empty()) return false;
-    // Each end against the other circles met, starting with the one that held the last
-    // end (often the next end's holder too).
+    // Each end against every other circle met, without early exits (branch-free and
+    // vectorisable: most ends lie in one or two of about eight circles).
     const std::size_t na = ends.size() / 2;
-    std::size_t last = 0;
+    constexpr std::size_t stack = 64;
+    std::array<Scalar, stack> cx, cy, lim;  // the first na are set below
+    if (na > stack) return false;  // the exact sweep decides
+    for (std::size_t m = 0; m < na; ++m) {
+        const Circle& c = circles[static_cast<std::size_t>(ends[2 * m].circle)];
+        cx[m] = c.c.x();
+        cy[m] = c.c.y();
+        lim[m] = c.rho * c.rho * (1 - 1e-9);
+    }
     for (std::size_t e = 0; e < ends.size(); ++e) {
-        const Arc& pt = ends[e];
+        const Scalar x = ends[e].start, y = ends[e].width;
+        const std::size_t own = e / 2;
         bool inside = false;
-        for (std::size_t t = 0; t < na && !inside; ++t) {
-            const std::size_t m = last + t < na ? last + t : last + t - na;
-            if (m == e / 2) continue;
-            const Circle& c = circles[static_cast<std::size_t>(ends[2 * m].circle)];
-            const Scalar dx = pt.start - c.c.x(), dy = pt.width - c.c.y();
-            inside = dx * dx + dy * dy < c.rho * c.rho * (1 - 1e-9);
-            if (inside) last = m;
+        for (std::size_t m = 0; m < na; ++m) {
+            const Scalar dx = x - cx[m], dy = y - cy[m];
+            inside |= (m != own) & (dx * dx + dy * dy < lim[m]);
         }
         if (!inside) return false;
     }
