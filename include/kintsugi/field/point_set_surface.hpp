@@ -140,8 +140,11 @@ struct LocalSamples {
     Scalar radius = 0;                ///< every sample within this distance of centre is here
     std::vector<std::size_t> index;   ///< sample indices
     std::vector<Vec3> points, normals;
-    std::vector<Scalar> d2;           ///< scratch of a selection
-    std::vector<std::uint32_t> slots; ///< scratch of a selection
+    struct Candidate {
+        Scalar d2;
+        std::uint32_t slot;
+    };
+    std::vector<Candidate> cand;      ///< scratch of a selection
     std::size_t hits = 0, misses = 0; ///< fits served here / by the tree
 };
 
@@ -229,6 +232,8 @@ public:
         out.normal = len > 0 ? Vec3(g / len) : Vec3::Zero();
         return out;
     }
+    /// The unit normals of the samples (input order).
+    [[nodiscard]] const std::vector<Vec3>& normals() const { return normals_; }
     /// Fills `local` with the samples within `radius` of `centre` (tree order).
     void gather_local(const Vec3& centre, Scalar radius, detail::pss::LocalSamples& local) const {
         thread_local std::vector<Neighbor> nn;
@@ -299,35 +304,41 @@ private:
         // A sample outside the ball is at least radius - t from x; the margin covers rounding.
         const Scalar t = (x - local.centre).norm(), room = local.radius * (1 - 1e-9) - t;
         if (m < k || !(room > 0)) return false;
-        local.d2.resize(m);
-        local.slots.resize(m);
+        // Only samples closer than `room` can serve (a k-th or widened distance at or
+        // beyond it sends the fit to the tree): the selection runs on those alone.
+        const Scalar room2 = room * room;
+        local.cand.clear();
         for (std::size_t j = 0; j < m; ++j) {
             const Vec3& p = local.points[j];
             const Scalar dx = p.x() - x.x(), dy = p.y() - x.y(), dz = p.z() - x.z();
-            local.d2[j] = dx * dx + dy * dy + dz * dz;
-            local.slots[j] = static_cast<std::uint32_t>(j);
+            const Scalar d2 = dx * dx + dy * dy + dz * dz;
+            if (d2 < room2) local.cand.push_back({d2, static_cast<std::uint32_t>(j)});
         }
-        const auto by_distance = [&](std::uint32_t a, std::uint32_t b) {
-            return local.d2[a] < local.d2[b] || (local.d2[a] == local.d2[b] && local.index[a] < local.index[b]);
+        if (local.cand.size() < k) return false;
+        const auto by_distance = [&](const detail::pss::LocalSamples::Candidate& a,
+                                     const detail::pss::LocalSamples::Candidate& b) {
+            return a.d2 < b.d2 || (a.d2 == b.d2 && local.index[a.slot] < local.index[b.slot]);
         };
-        std::nth_element(local.slots.begin(), local.slots.begin() + static_cast<std::ptrdiff_t>(k - 1), local.slots.end(),
+        std::nth_element(local.cand.begin(), local.cand.begin() + static_cast<std::ptrdiff_t>(k - 1), local.cand.end(),
                          by_distance);
-        const Scalar dk2 = local.d2[local.slots[k - 1]];
-        if (!(dk2 < room * room)) return false;
+        const Scalar dk2 = local.cand[k - 1].d2;
+        // The k nearest in the ball's order (not nth_element's): the fit's sums then
+        // follow the samples, not the selection's swaps.
+        std::sort(local.cand.begin(), local.cand.begin() + static_cast<std::ptrdiff_t>(k),
+                  [](const auto& a, const auto& b) { return a.slot < b.slot; });
         nn.clear();
         Scalar d1 = dk2;
         for (std::size_t j = 0; j < k; ++j) {
-            const std::uint32_t sl = local.slots[j];
-            nn.push_back({sl, local.d2[sl]});
-            d1 = std::min(d1, local.d2[sl]);
+            nn.push_back({local.cand[j].slot, local.cand[j].d2});
+            d1 = std::min(d1, local.cand[j].d2);
         }
         if (params_.min_support_factor > 0) {
             const Scalar wide2 = params_.min_support_factor * params_.min_support_factor * d1;
             if (wide2 > dk2) {
-                if (!(wide2 < room * room)) return false;
+                if (!(wide2 < room2)) return false;
                 nn.clear();
-                for (std::size_t j = 0; j < m; ++j)
-                    if (local.d2[j] <= wide2) nn.push_back({j, local.d2[j]});
+                for (const auto& c : local.cand)
+                    if (c.d2 <= wide2) nn.push_back({c.slot, c.d2});
             }
         }
         return true;
