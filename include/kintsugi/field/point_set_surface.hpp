@@ -234,22 +234,6 @@ public:
     }
     /// The unit normals of the samples (input order).
     [[nodiscard]] const std::vector<Vec3>& normals() const { return normals_; }
-    /// Fills `local` with the samples within `radius` of `centre` (tree order).
-    void gather_local(const Vec3& centre, Scalar radius, detail::pss::LocalSamples& local) const {
-        thread_local std::vector<Neighbor> nn;
-        tree_.radius_search_squared(centre, radius * radius, nn, false);
-        const std::size_t m = nn.size();
-        local.centre = centre;
-        local.radius = radius;
-        local.index.resize(m);
-        local.points.resize(m);
-        local.normals.resize(m);
-        for (std::size_t j = 0; j < m; ++j) {
-            local.index[j] = nn[j].index;
-            local.points[j] = tree_.point(nn[j].index);
-            local.normals[j] = normals_[nn[j].index];
-        }
-    }
     /// @endcond
 
 private:

@@ -540,8 +540,8 @@ public:
             index_[slot] = i;
         }
     }
-    /// Fills `local` with every sample within `radius` of `centre` (as
-    /// PointSetSurface::gather_local, in the grid's order).
+    /// Fills `local` with every sample within `radius` of `centre`, in the grid's
+    /// order (cells by z, y, x; input order within a cell).
     void gather(const Vec3& centre, Scalar radius, detail::pss::LocalSamples& local) const {
         local.centre = centre;
         local.radius = radius;
