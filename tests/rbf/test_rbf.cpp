@@ -204,6 +204,30 @@ TEST_CASE("RBFOctreeField: interpolates the points (|f| <= 1e-6 diag) and the of
     }
 }
 
+TEST_CASE("RBFOctreeField: a long offset among dense points (the padding's tree of centres) still interpolates") {
+    // Three points 9 units off a sphere of 6,000: their offsets are ~6 long, so the ball
+    // that would hold a padded cell's 20 nearest centres covers the whole sphere (> 4,096
+    // points) and the padding takes them from a kd-tree of the centres instead. Checked
+    // once against brute force while writing this (all 1,484 padded cells: the same sets).
+    V pts, nrm;
+    sphere_points(6000, 3, pts, nrm, ks::Vec3::Zero());
+    for (int i = 0; i < 3; ++i) {
+        pts.emplace_back(10 + 0.01 * i, 0.003 * i, 0);
+        nrm.emplace_back(1, 0, 0);
+    }
+    const double diag = diagonal(pts);
+    const auto res = ks::RBFOctreeField::build(ks::with_normals(pts, nrm), {.n_max = 60});
+    REQUIRE(res.status == ks::Status::ok);
+    CHECK(res.stats.padded_cells > 100);
+    CHECK(res.stats.ill_conditioned_cells == 0);
+    double worst = 0;
+    for (const auto& p : pts) worst = std::max(worst, std::abs(res.field(p)));
+    CHECK(worst <= 1e-6 * diag);
+    // Off the samples the sphere's side is still right.
+    for (const auto& p : std::vector<ks::Vec3>{{0, 0, 0}, {0.5, 0.2, 0}, {1.2, 0, 0}, {0, -1.3, 0.2}})
+        CHECK((res.field(p) < 0) == (p.norm() < 1));
+}
+
 TEST_CASE("RBFOctreeField: the blend removes the seams of the paper's per-cell evaluation") {
     V pts, nrm;
     sphere_points(6000, 2, pts, nrm);
