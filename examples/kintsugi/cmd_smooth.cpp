@@ -120,6 +120,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["face_iterations"] = r.face_iterations;
         j["parameters"]["normal_iterations"] = r.normal_iterations;
         j["parameters"]["strong_noise"] = r.strong_noise;
+        j["parameters"]["detection_presmooth_iterations"] = r.detection.presmooth_iterations;
+        j["parameters"]["detection_prefilter_scale"] = r.detection.prefilter_scale;
         j["parameters"]["d_from_noise"] = !params.d.has_value();
         j["parameters"]["face_iterations_from_noise"] = !params.face_iterations.has_value();
         if (r.noise_estimated) {

@@ -208,7 +208,7 @@ stderr_has "disk full message" "full.ply"
 if [ ! -e "$work/feat.ply" ]; then ok; else bad "failed smooth wrote its --features file"; fi
 expect 0 "smooth with features" -- "$bin" smooth "$mesh" "$work/sm.off" --features "$work/feat.ply" --face-iterations 1 --json
 if [ -s "$work/sm.off" ] && [ -s "$work/feat.ply" ]; then ok; else bad "smooth outputs missing"; fi
-json_check "smooth: noise estimate and the values used in --json" "j['noise']['sigma']>0 and j['noise']['vertices_used']==1839 and j['parameters']['d_from_noise'] is True and j['parameters']['d']>=0.14 and j['parameters']['face_iterations']==1 and j['parameters']['face_iterations_from_noise'] is False and j['parameters']['normal_iterations']==10 and j['parameters']['strong_noise'] is False"
+json_check "smooth: noise estimate and the values used in --json" "j['noise']['sigma']>0 and j['noise']['vertices_used']==1839 and j['parameters']['d_from_noise'] is True and j['parameters']['d']>=0.14 and j['parameters']['face_iterations']==1 and j['parameters']['face_iterations_from_noise'] is False and j['parameters']['normal_iterations']==10 and j['parameters']['strong_noise'] is False and j['parameters']['detection_presmooth_iterations']==3"
 expect 0 "smooth with explicit d and face iterations" -- "$bin" smooth "$mesh" "$work/sm2.off" --d 0.2 --face-iterations 2 --json
 json_check "smooth: explicit values win, no estimate" "j['parameters']['d']==0.2 and j['parameters']['face_iterations']==2 and j['parameters']['d_from_noise'] is False and 'noise' not in j"
 expect 0 "smooth --preset paper" -- "$bin" smooth "$mesh" "$work/sm3.off" --preset paper --json

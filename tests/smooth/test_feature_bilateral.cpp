@@ -791,18 +791,15 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         CHECK(rb.noise_estimated);
         CHECK(rb.d == 0.3);
         CHECK(rb.face_iterations > 3);
-        // The automatic choice equals passing the values it reports (at this noise with
-        // the strong-noise rule's documented detection settings too).
+        // The automatic choice equals passing the values it reports, the detection
+        // settings the strong-noise rule raised included.
         auto c = noisy, e = noisy;
         const auto rc = ks::smooth_feature_bilateral(c);
-        ks::FeatureBilateralParams same{.d = rc.d, .face_iterations = rc.face_iterations,
+        ks::FeatureBilateralParams same{.d = rc.d, .detection = rc.detection, .face_iterations = rc.face_iterations,
                                         .normal_iterations = rc.normal_iterations};
         CHECK(rc.strong_noise);
         CHECK(rc.normal_iterations == 20);
-        if (rc.strong_noise) {
-            same.detection.presmooth_iterations = 6;
-            same.detection.prefilter_scale = 3;
-        }
+        CHECK(rc.detection.presmooth_iterations > ks::FeatureBilateralParams{}.detection.presmooth_iterations);
         (void)ks::smooth_feature_bilateral(e, same);
         CHECK(c.vertices == e.vertices);
     }

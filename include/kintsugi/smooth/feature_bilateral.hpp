@@ -244,6 +244,9 @@ struct FeatureBilateralResult {
     /// pre-smoothing (face_iterations unset and estimated σ ≥ 0.47|e|; see "Parameters from
     /// the data").
     bool strong_noise = false;
+    /// The detection settings used: params.detection, raised by the strong-noise rule
+    /// when it applied (passing them back with d and the iteration counts repeats the run).
+    SharpFeatureParams detection{};
 };
 
 namespace detail::fbs {
@@ -535,6 +538,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         result.normal_iterations = params.normal_iterations;
         result.strong_noise = !params.face_iterations && result.noise.sigma >= fbs::strong_noise_ratio * L;
         if (result.strong_noise) fbs::raise_for_strong_noise(result.normal_iterations, detection);
+        result.detection = detection;
+        result.detection.control = {};
         result.noise.sigma = so.frame.to_world(result.noise.sigma);
         result.noise.mean_edge_length = so.frame.to_world(result.noise.mean_edge_length);
         result.noise.clean_edge_length = so.frame.to_world(result.noise.clean_edge_length);
