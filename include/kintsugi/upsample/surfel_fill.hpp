@@ -315,7 +315,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         // New centres lie about r_i + r_new from p_i: a ball of dk_typ + 1.5 (2 r) holds
         // the supports of 97 % of the fits on bunny00 134K (2 r: 99 %, no faster).
         const Scalar local_radius = dk_typ + 3 * cfg.radius * scale;
-        const UniformGrid input_grid(mls.tree().points(), local_radius);  // the MLS samples
+        const InputSamples input(mls, local_radius);
         // open[i]: the last fill of i left part of a gap unfilled (a placement dropped).
         std::vector<unsigned char> open(P.size(), 0);
         auto new_radius = [&](Index i) {
@@ -363,7 +363,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                 s.new_reach.clear();
                 dropped = 0;
                 Scalar rmin_new = std::numeric_limits<Scalar>::infinity();
-                if (!s.pf.centres.empty() && attempt == 0) gather_samples(input_grid, mls, pi, local_radius, s.local);
+                if (!s.pf.centres.empty() && attempt == 0) input.gather(pi, local_radius, s.local);
                 for (const Vec2& c : s.pf.centres) {
                     const Vec3 x = pi + c.x() * e1 + c.y() * e2;
                     const SurfaceProjection pr = mls.project_unchecked(x, &s.local, projection_tolerance);

@@ -498,25 +498,32 @@ private:
     std::vector<Cell> cells_;
 };
 
-/// Fills `local` with every MLS sample within `radius` of `centre` (index, position,
-/// normal), in `grid`'s order: cells by (z, y, x), sample index within a cell; the same
-/// set as a kd-tree radius search. `grid` holds the samples' positions (indices = sample
-/// indices), best with cells `radius` wide (one hash look-up, at most 27 cells).
-inline void gather_samples(const UniformGrid& grid, const PointSetSurface& mls, const Vec3& centre, Scalar radius,
-                           detail::pss::LocalSamples& local) {
-    local.centre = centre;
-    local.radius = radius;
-    local.index.clear();
-    local.points.clear();
-    local.normals.clear();
-    const std::vector<Vec3>& p = mls.tree().points();
-    const std::vector<Vec3>& n = mls.normals();
-    grid.for_each_in_ball(centre, radius, [&](Index i, Scalar) {
-        local.index.push_back(i);
-        local.points.push_back(p[i]);
-        local.normals.push_back(n[i]);
-    });
-}
+/// The MLS samples in a UniformGrid (cells as wide as the gather radius: one hash
+/// look-up, at most 27 cells a query) with their normals in the grid's slot order, so
+/// that a gather reads positions and normals from a few contiguous runs (by index, the
+/// reads scattered over the input: the gather took 1.9x the time on bunny00 134K).
+struct InputSamples {
+    UniformGrid grid;
+    std::vector<Vec3> normals;  ///< normals[s]: the normal of the sample in slot s
+    InputSamples(const PointSetSurface& mls, Scalar radius) : grid(mls.tree().points(), radius), normals(grid.size()) {
+        parallel_for(0, normals.size(), [&](std::size_t s) { normals[s] = mls.normals()[grid.slot_index(s)]; }, 4096);
+    }
+    /// Fills `local` with every sample within `radius` of `centre` (index, position,
+    /// normal), in the grid's order: cells by (z, y, x), sample index within a cell
+    /// (the same set as a kd-tree radius search).
+    void gather(const Vec3& centre, Scalar radius, detail::pss::LocalSamples& local) const {
+        local.centre = centre;
+        local.radius = radius;
+        local.index.clear();
+        local.points.clear();
+        local.normals.clear();
+        grid.for_each_slot_in_ball(centre, radius, [&](std::size_t s, Scalar) {
+            local.index.push_back(grid.slot_index(s));
+            local.points.push_back(grid.slot_point(s));
+            local.normals.push_back(normals[s]);
+        });
+    }
+};
 
 /// An orthonormal tangent basis of the plane with unit normal n (a fixed function of n).
 inline void tangent_basis(const Vec3& n, Vec3& e1, Vec3& e2) {
