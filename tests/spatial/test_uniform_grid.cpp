@@ -297,6 +297,75 @@ TEST_CASE("UniformGrid grows beyond its box and keeps the built points' indices 
     CHECK(by_index(ball(grid, ks::Vec3(1e6, 0, 0), 0.1)) == Hits{{1503, 0.0}, {1504, 0.05 * 0.05}});
 }
 
+namespace {
+
+// Slots: a permutation of the points with their positions; a ball query by slot finds
+// for_each_in_ball's points in its order; data kept in slot order is read back right.
+void check_slots(const ks::UniformGrid& grid, const std::vector<ks::Vec3>& pts, const std::vector<ks::Index>& kept,
+                 unsigned seed) {
+    REQUIRE(grid.size() == kept.size());
+    std::vector<ks::Index> seen;
+    std::vector<double> label(grid.size());  // a caller's data per point, in slot order
+    for (std::size_t s = 0; s < grid.size(); ++s) {
+        const ks::Index i = grid.slot_index(s);
+        seen.push_back(i);
+        CHECK(grid.slot_point(s) == pts[i]);
+        label[s] = 10.0 * static_cast<double>(i);
+    }
+    std::sort(seen.begin(), seen.end());
+    CHECK(seen == kept);
+    std::size_t found = 0;
+    for (const auto& q : cloud(30, seed, 1.2))
+        for (double r : {0.0, 0.05, 0.1, 0.3, 3.0}) {
+            Hits by_slot;
+            grid.for_each_slot_in_ball(q, r, [&](std::size_t s, double d2) {
+                CHECK(label[s] == 10.0 * static_cast<double>(grid.slot_index(s)));
+                by_slot.emplace_back(grid.slot_index(s), d2);
+            });
+            CHECK(by_slot == ball(grid, q, r));
+            found += by_slot.size();
+        }
+    CHECK(found > 1000);
+}
+
+}  // namespace
+
+TEST_CASE("UniformGrid slots: the points in storage order, a ball query by slot as for_each_in_ball") {
+    const auto pts = cloud(3000, 30);
+    std::vector<ks::Index> all(pts.size()), kept;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        all[i] = i;
+        if (i % 3 != 0) kept.push_back(i);
+    }
+    const ks::UniformGrid grid(pts, 0.1);
+    check_slots(grid, pts, all, 31);
+    // Built points are stored by cell in (z, y, x) order, by index within a cell.
+    ks::Vec3 lo = pts[0];
+    for (const auto& p : pts) lo = lo.cwiseMin(p);
+    auto rank = [&](ks::Index i) {
+        const ks::Vec3 g = ((pts[i] - lo) / 0.1).array().floor();
+        return std::array<double, 4>{g.z(), g.y(), g.x(), double(i)};
+    };
+    bool sorted = true;
+    for (std::size_t s = 1; s < grid.size(); ++s) sorted = sorted && rank(grid.slot_index(s - 1)) < rank(grid.slot_index(s));
+    CHECK(sorted);
+    check_slots(ks::UniformGrid(pts, 0.1, [](std::size_t i) { return i % 3 != 0; }), pts, kept, 32);
+    // Appended points: before a merge they come after the built ones, in append order.
+    ks::UniformGrid grown(std::vector<ks::Vec3>(pts.begin(), pts.begin() + 1500), 0.1);
+    std::vector<ks::Index> so_far(all.begin(), all.begin() + 1500);
+    for (std::size_t i = 1500; i < 1600; ++i) {
+        grown.append(pts[i]);
+        so_far.push_back(i);
+    }
+    CHECK(grown.slot_index(1500) == 1500);
+    CHECK(grown.slot_index(1599) == 1599);
+    check_slots(grown, pts, so_far, 33);
+    for (std::size_t i = 1600; i < pts.size(); ++i) grown.append(pts[i]);  // merges at 3000
+    check_slots(grown, pts, all, 34);
+    CHECK_THROWS_AS(grid.for_each_slot_in_ball(ks::Vec3(std::nan(""), 0, 0), 0.1, [](std::size_t, double) {}),
+                    ks::invalid_input);
+}
+
 TEST_CASE("UniformGrid append rejects NaN points and a grid without a cell side") {
     ks::UniformGrid grid(0.5);
     CHECK_THROWS_WITH_AS(grid.append(ks::Vec3(0, std::numeric_limits<double>::quiet_NaN(), 0)), doctest::Contains("NaN"),

@@ -15,6 +15,9 @@
 /// grid.knn(q, 8, nn);                               // a SpatialIndex, as KdTree
 /// kintsugi::UniformGrid out(h);                     // empty, cell side h
 /// kintsugi::Index i = out.append(p);                // grows: for outputs built point by point
+/// for (std::size_t s = 0; s < grid.size(); ++s)      // the caller's data in the grid's
+///     mine[s] = data[grid.slot_index(s)];            // storage order (slots), then
+/// grid.for_each_slot_in_ball(q, r, [&](std::size_t s, kintsugi::Scalar d2) { use(mine[s]); });
 /// @endcode
 ///
 /// Cells of side `cell` (best: the usual query half side or radius, so that a query
@@ -282,6 +285,34 @@ public:
         });
     }
 
+    /// Slots: the grid stores its points in slots 0 .. size() - 1, in the grid's order
+    /// (by cell in (z, y, x) order, by index within a cell; the appended points not
+    /// merged yet after the others, in append order). A caller can keep data of its own
+    /// per point in slot order, so that a query's results (for_each_slot_in_ball) read
+    /// it from a few contiguous runs of memory instead of at scattered indices. Slots are
+    /// renumbered by build() and by an append() that merges (the point count reaches
+    /// twice the merged count, or at least 1024 appended points).
+    /// The index of the point in slot s (s < size()).
+    [[nodiscard]] Index slot_index(std::size_t s) const {
+        return static_cast<Index>(s < index_.size() ? index_[s] : extra_index_[s - index_.size()]);
+    }
+    /// The position of the point in slot s (s < size()).
+    [[nodiscard]] const Vec3& slot_point(std::size_t s) const {
+        return s < point_.size() ? point_[s] : extra_point_[s - point_.size()];
+    }
+    /// Calls f(slot, squared distance) for every point at distance at most r from c,
+    /// in the grid's order (the same points and order as for_each_in_ball).
+    /// @throws invalid_input if c has a NaN or infinite coordinate or r is NaN.
+    template <class F>
+    void for_each_slot_in_ball(const Vec3& c, Scalar r, F&& f) const {
+        require_query(c, r, "for_each_slot_in_ball");
+        const Scalar r2 = r * r;
+        for_each_candidate_slot(c, r, [&](std::size_t s, const Vec3& p) {
+            const Scalar d2 = (p - c).squaredNorm();
+            if (d2 <= r2) f(s, d2);
+        });
+    }
+
     /// All points whose squared distance to q is at most `squared_radius` (a negative
     /// radius finds nothing), as KdTree::radius_search_squared.
     /// @param sorted true: by increasing distance, ties by index; false: the grid's order
@@ -447,11 +478,25 @@ private:
         });
         if (!extra_point_.empty()) for_each_extra(c, h, visit);
     }
-    /// The appended points not merged yet, of the cells that meet the cube: by cell in
-    /// (z, y, x) order, then by index; all of them in index order when the cube spans
-    /// more cells than they fill.
+    /// for_each_candidate by slot (see slot_index): visit(slot, position).
+    template <class Visit>
+    void for_each_candidate_slot(const Vec3& c, Scalar h, Visit&& visit) const {
+        for_each_cell(c, h, [&](std::uint32_t cidx) {
+            for (std::size_t j = start_[cidx]; j < start_[cidx + 1]; ++j) visit(j, point_[j]);
+        });
+        if (!extra_point_.empty())
+            for_each_extra_slot(c, h, [&](std::size_t j) { visit(index_.size() + j, extra_point_[j]); });
+    }
+    /// for_each_extra_slot with visit(index, position).
     template <class Visit>
     void for_each_extra(const Vec3& c, Scalar h, Visit&& visit) const {
+        for_each_extra_slot(c, h, [&](std::size_t j) { visit(static_cast<Index>(extra_index_[j]), extra_point_[j]); });
+    }
+    /// Calls visit(j) for the appended points not merged yet (j: their place in
+    /// extra_point_) of the cells that meet the cube: by cell in (z, y, x) order, then
+    /// by index; all of them in index order when the cube spans more cells than they fill.
+    template <class Visit>
+    void for_each_extra_slot(const Vec3& c, Scalar h, Visit&& visit) const {
         const Vec3 a = (c - lo_) * inv_;
         const Scalar r = h * inv_;
         std::array<Scalar, 3> l{}, u{};
@@ -461,7 +506,7 @@ private:
         }
         const double box_cells = (u[0] - l[0] + 1) * (u[1] - l[1] + 1) * (u[2] - l[2] + 1);
         if (!(box_cells <= static_cast<double>(extra_cells_.size())) || !in_extra_range(l) || !in_extra_range(u)) {
-            for (std::size_t j = 0; j < extra_point_.size(); ++j) visit(static_cast<Index>(extra_index_[j]), extra_point_[j]);
+            for (std::size_t j = 0; j < extra_point_.size(); ++j) visit(j);
             return;
         }
         for (auto z = static_cast<std::int64_t>(l[2]); z <= static_cast<std::int64_t>(u[2]); ++z)
@@ -469,7 +514,7 @@ private:
                 for (auto x = static_cast<std::int64_t>(l[0]); x <= static_cast<std::int64_t>(u[0]); ++x) {
                     const auto it = extra_cells_.find(pack_extra(x, y, z));
                     if (it == extra_cells_.end()) continue;
-                    for (std::uint32_t j : it->second) visit(static_cast<Index>(extra_index_[j]), extra_point_[j]);
+                    for (std::uint32_t j : it->second) visit(std::size_t{j});
                 }
     }
     // Appended points are keyed by unclamped cell coordinates relative to lo_, offset

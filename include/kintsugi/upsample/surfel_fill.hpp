@@ -22,7 +22,7 @@
 /// by Δω of eq. (1) (a hexagonal layout for equal radii), the small-gap rules (b)-(d),
 /// and the slide of eq. (2) when a new centre falls inside an existing disk; the new
 /// surfels are back-projected onto the MLS surface of the INPUT points (APSS,
-/// field/point_set_surface.hpp; kd-tree and a dense grid on the input, hashed cells on the output) and
+/// field/point_set_surface.hpp; kd-tree and a UniformGrid on the input, hashed cells on the output) and
 /// processed in turn, in parallel over cells far enough apart (deterministic: see
 /// detail::surfel_fill::run). Rounds repeat over the surfels whose placed disks leave
 /// part of their boundary open until a round finds no gap; the surfels whose last fill dropped a placement are
@@ -315,7 +315,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
         // New centres lie about r_i + r_new from p_i: a ball of dk_typ + 1.5 (2 r) holds
         // the supports of 97 % of the fits on bunny00 134K (2 r: 99 %, no faster).
         const Scalar local_radius = dk_typ + 3 * cfg.radius * scale;
-        const InputGrid input_grid(mls, local_radius);
+        const InputSamples input(mls, local_radius);
         // open[i]: the last fill of i left part of a gap unfilled (a placement dropped).
         std::vector<unsigned char> open(P.size(), 0);
         auto new_radius = [&](Index i) {
@@ -363,7 +363,7 @@ inline void run(std::vector<Vec3> P, std::vector<Vec3> N, std::vector<Scalar> R,
                 s.new_reach.clear();
                 dropped = 0;
                 Scalar rmin_new = std::numeric_limits<Scalar>::infinity();
-                if (!s.pf.centres.empty() && attempt == 0) input_grid.gather(pi, local_radius, s.local);
+                if (!s.pf.centres.empty() && attempt == 0) input.gather(pi, local_radius, s.local);
                 for (const Vec2& c : s.pf.centres) {
                     const Vec3 x = pi + c.x() * e1 + c.y() * e2;
                     const SurfaceProjection pr = mls.project_unchecked(x, &s.local, projection_tolerance);

@@ -498,96 +498,31 @@ private:
     std::vector<Cell> cells_;
 };
 
-/// The MLS samples bucketed in a dense grid of cubic cells, the cells in x-fastest
-/// order and each cell's samples (copies of position and normal, with the sample
-/// index) contiguous: a ball query reads one contiguous run per (y, z) row of cells.
-/// It gathers the samples around a surfel for the fits of its new disks (the same set
-/// as a kd-tree radius search, in the grid's order; 5x faster on bunny00 134K).
-class InputGrid {
-public:
-    /// Cells of side at least `side` (larger when the box would need more than
-    /// max_cells cells).
-    InputGrid(const PointSetSurface& mls, Scalar side) {
-        const KdTree& tree = mls.tree();
-        const std::size_t n = tree.size();
-        BoundingBox box;
-        for (std::size_t i = 0; i < n; ++i) box.extend(tree.point(i));
-        lo_ = box.min;
-        const Vec3 ext = box.max - box.min;
-        side = std::max(side, ext.maxCoeff() * 1e-6);
-        for (;; side *= 1.26) {
-            for (int a = 0; a < 3; ++a)
-                dim_[static_cast<std::size_t>(a)] = static_cast<std::int64_t>(std::floor(ext[a] / side)) + 1;
-            if (dim_[0] * dim_[1] * dim_[2] <= max_cells) break;
-        }
-        inv_ = 1 / side;
-        const auto cells = static_cast<std::size_t>(dim_[0] * dim_[1] * dim_[2]);
-        std::vector<std::uint32_t> cell_of(n);
-        start_.assign(cells + 1, 0);
-        for (std::size_t i = 0; i < n; ++i) {
-            cell_of[i] = static_cast<std::uint32_t>(cell_index(tree.point(i)));
-            ++start_[cell_of[i] + 1];
-        }
-        for (std::size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
-        std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
-        p_.resize(n);
-        n_.resize(n);
-        index_.resize(n);
-        for (std::size_t i = 0; i < n; ++i) {  // index order within each cell
-            const std::uint32_t slot = fill[cell_of[i]]++;
-            p_[slot] = tree.point(i);
-            n_[slot] = mls.normals()[i];
-            index_[slot] = i;
-        }
+/// The MLS samples in a UniformGrid (cells as wide as the gather radius: one hash
+/// look-up, at most 27 cells a query) with their normals in the grid's slot order, so
+/// that a gather reads positions and normals from a few contiguous runs (by index, the
+/// reads scattered over the input: the gather took 1.9x the time on bunny00 134K).
+struct InputSamples {
+    UniformGrid grid;
+    std::vector<Vec3> normals;  ///< normals[s]: the normal of the sample in slot s
+    InputSamples(const PointSetSurface& mls, Scalar radius) : grid(mls.tree().points(), radius), normals(grid.size()) {
+        parallel_for(0, normals.size(), [&](std::size_t s) { normals[s] = mls.normals()[grid.slot_index(s)]; }, 4096);
     }
-    /// Fills `local` with every sample within `radius` of `centre`, in the grid's
-    /// order (cells by z, y, x; input order within a cell).
+    /// Fills `local` with every sample within `radius` of `centre` (index, position,
+    /// normal), in the grid's order: cells by (z, y, x), sample index within a cell
+    /// (the same set as a kd-tree radius search).
     void gather(const Vec3& centre, Scalar radius, detail::pss::LocalSamples& local) const {
         local.centre = centre;
         local.radius = radius;
         local.index.clear();
         local.points.clear();
         local.normals.clear();
-        std::array<std::int64_t, 3> l{}, u{};
-        for (int a = 0; a < 3; ++a) {
-            const auto k = static_cast<std::size_t>(a);
-            l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((centre[a] - radius - lo_[a]) * inv_)));
-            u[k] = std::min<std::int64_t>(dim_[k] - 1, static_cast<std::int64_t>(std::floor((centre[a] + radius - lo_[a]) * inv_)));
-            if (l[k] > u[k]) return;
-        }
-        const Scalar r2 = radius * radius;
-        for (std::int64_t z = l[2]; z <= u[2]; ++z)
-            for (std::int64_t y = l[1]; y <= u[1]; ++y) {
-                const auto row = static_cast<std::size_t>((z * dim_[1] + y) * dim_[0]);
-                const std::uint32_t b = start_[row + static_cast<std::size_t>(l[0])],
-                                    e = start_[row + static_cast<std::size_t>(u[0]) + 1];
-                for (std::uint32_t s = b; s < e; ++s) {
-                    const Vec3& p = p_[s];
-                    const Scalar dx = p.x() - centre.x(), dy = p.y() - centre.y(), dz = p.z() - centre.z();
-                    if (dx * dx + dy * dy + dz * dz <= r2) {
-                        local.index.push_back(index_[s]);
-                        local.points.push_back(p);
-                        local.normals.push_back(n_[s]);
-                    }
-                }
-            }
+        grid.for_each_slot_in_ball(centre, radius, [&](std::size_t s, Scalar) {
+            local.index.push_back(grid.slot_index(s));
+            local.points.push_back(grid.slot_point(s));
+            local.normals.push_back(normals[s]);
+        });
     }
-
-private:
-    static constexpr std::int64_t max_cells = std::int64_t{1} << 22;
-    [[nodiscard]] std::size_t cell_index(const Vec3& p) const {
-        std::int64_t c[3];
-        for (int a = 0; a < 3; ++a)
-            c[a] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((p[a] - lo_[a]) * inv_)), 0,
-                                            dim_[static_cast<std::size_t>(a)] - 1);
-        return static_cast<std::size_t>((c[2] * dim_[1] + c[1]) * dim_[0] + c[0]);
-    }
-    Vec3 lo_ = Vec3::Zero();
-    Scalar inv_ = 1;
-    std::array<std::int64_t, 3> dim_{1, 1, 1};
-    std::vector<std::uint32_t> start_;
-    std::vector<Vec3> p_, n_;
-    std::vector<std::size_t> index_;
 };
 
 /// An orthonormal tangent basis of the plane with unit normal n (a fixed function of n).
