@@ -13,6 +13,7 @@
 
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/stages.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/field/edge_root.hpp>
 #include <kintsugi/graph/st_cut.hpp>
@@ -23,16 +24,6 @@
 #include <kintsugi/reconstruct/pu_field.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Hidden_point_memory_policy.h>
-#include <CGAL/Regular_triangulation_3.h>
-#include <CGAL/Regular_triangulation_cell_base_3.h>
-#include <CGAL/Regular_triangulation_vertex_base_3.h>
-#include <CGAL/Spatial_sort_traits_adapter_3.h>
-#include <CGAL/Triangulation_data_structure_3.h>
-#include <CGAL/Triangulation_vertex_base_with_info_3.h>
-#include <CGAL/property_map.h>
-#include <CGAL/spatial_sort.h>
 
 #include <algorithm>
 #include <array>
@@ -55,107 +46,10 @@ struct PUTetMesh {
 };
 
 /// Regular triangulation of weighted sites (centre, weight = radius²) with CGAL.
-/// Sites with radius 0 are plain points. Reports progress in [p0, p1].
-inline PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::vector<Scalar>& radii,
-                                  Progress& progress, double p0, double p1) {
-    using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-    using Vb = CGAL::Triangulation_vertex_base_with_info_3<Index, K, CGAL::Regular_triangulation_vertex_base_3<K>>;
-    using Cb = CGAL::Regular_triangulation_cell_base_3<K, CGAL::Triangulation_cell_base_3<K>,
-                                                       CGAL::Discard_hidden_points>;
-    using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
-    using RT = CGAL::Regular_triangulation_3<K, Tds>;
-    using WP = K::Weighted_point_3;
-
-    const std::size_t n = centers.size();
-    // Hilbert order once, then insertion in chunks so that cancellation is checked.
-    std::vector<K::Point_3> pts(n);
-    for (std::size_t i = 0; i < n; ++i) pts[i] = K::Point_3(centers[i].x(), centers[i].y(), centers[i].z());
-    std::vector<Index> order(n);
-    std::iota(order.begin(), order.end(), Index{0});
-    using Pmap = CGAL::Pointer_property_map<K::Point_3>::const_type;
-    CGAL::spatial_sort(order.begin(), order.end(),
-                       CGAL::Spatial_sort_traits_adapter_3<K, Pmap>(CGAL::make_property_map(std::as_const(pts))));
-    RT rt;
-    // Insertion in chunks of 2^15 sites, each in CGAL's own order for a range
-    // (Regular_triangulation_3::insert_with_info, sequential: a spatial sort of the
-    // chunk, then locate + insert from the previous vertex's cell), written out here so
-    // that progress is reported and the stop token polled every 1024 insertions. The
-    // triangulation depends on this order where sites are cospherical (octree cell
-    // centres are), so it is the order of a plain rt.insert(chunk) and the chunks
-    // stay 2^15: the output is the same as with one insert call per chunk.
-    const std::size_t chunk = 1 << 15;
-    std::vector<WP> wps;
-    std::vector<K::Point_3> bare;
-    std::vector<std::size_t> idx;
-    for (std::size_t b = 0; b < n; b += chunk) {
-        const std::size_t m = std::min(n, b + chunk) - b;
-        wps.clear();
-        bare.clear();
-        for (std::size_t j = b; j < b + m; ++j) {
-            const Index i = order[j];
-            wps.emplace_back(pts[i], radii[i] * radii[i]);
-            bare.push_back(pts[i]);
-        }
-        idx.resize(m);
-        std::iota(idx.begin(), idx.end(), std::size_t{0});
-        CGAL::spatial_sort(idx.begin(), idx.end(),
-                           CGAL::Spatial_sort_traits_adapter_3<K, Pmap>(CGAL::make_property_map(std::as_const(bare))));
-        typename RT::Cell_handle hint;
-        for (std::size_t k = 0; k < m; ++k) {
-            if ((k & 1023) == 0)
-                progress.update(p0 + (p1 - p0) * 0.85 * static_cast<double>(b + k) / static_cast<double>(n));
-            const WP& p = wps[idx[k]];
-            typename RT::Locate_type lt;
-            int li = 0, lj = 0;
-            const typename RT::Cell_handle c = rt.locate(p, lt, li, lj, hint);
-            const typename RT::Vertex_handle v = rt.insert(p, lt, c, li, lj);
-            if (v != typename RT::Vertex_handle()) {
-                v->info() = order[b + idx[k]];
-                hint = v->cell();
-            } else {
-                hint = c;
-            }
-        }
-    }
-    progress.check();
-
-    PUTetMesh out;
-    // Vertices numbered by increasing site index (deterministic, independent of CGAL's storage).
-    std::vector<Index> alive;
-    alive.reserve(rt.number_of_vertices());
-    for (auto v : rt.finite_vertex_handles()) alive.push_back(v->info());
-    std::sort(alive.begin(), alive.end());
-    std::vector<Index> vertex_of(n, std::numeric_limits<Index>::max());
-    for (Index k = 0; k < alive.size(); ++k) vertex_of[alive[k]] = k;
-    out.site = alive;
-    out.vertices.resize(alive.size());
-    for (Index k = 0; k < alive.size(); ++k) out.vertices[k] = centers[alive[k]];
-    progress.update(p0 + (p1 - p0) * 0.9);
-    out.tets.reserve(rt.number_of_finite_cells());
-    for (auto c : rt.finite_cell_handles())
-        out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
-                            vertex_of[c->vertex(2)->info()], vertex_of[c->vertex(3)->info()]});
-    out.edges.reserve(rt.number_of_finite_edges());
-    for (auto it = rt.finite_edges_begin(); it != rt.finite_edges_end(); ++it) {
-        Index a = vertex_of[it->first->vertex(it->second)->info()];
-        Index b = vertex_of[it->first->vertex(it->third)->info()];
-        if (a > b) std::swap(a, b);
-        out.edges.push_back({a, b});
-    }
-    std::sort(out.edges.begin(), out.edges.end());
-    progress.update(p0 + (p1 - p0) * 0.95);
-    // Tets sorted too: the output mesh then depends only on the triangulation itself.
-    for (auto& t : out.tets) {
-        // rotate to the smallest index first keeping orientation (even permutations)
-        const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
-        const auto p = even_permutation(m);
-        t = Tet{t[static_cast<std::size_t>(p[0])], t[static_cast<std::size_t>(p[1])],
-                t[static_cast<std::size_t>(p[2])], t[static_cast<std::size_t>(p[3])]};
-    }
-    std::sort(out.tets.begin(), out.tets.end());
-    progress.update(p1);
-    return out;
-}
+/// Sites with radius 0 are plain points. Reports progress in [p0, p1]. Defined in
+/// pu_triangulation.ipp (kintsugi/core/stages.hpp).
+KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::vector<Scalar>& radii,
+                                          Progress& progress, double p0, double p1);
 
 /// Points on the surface of `box` on a grid with `per_side` intervals per side
 /// (corners and edges included once): the outer layer labelled outside.
@@ -387,3 +281,7 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
 }
 
 }  // namespace kintsugi::detail
+
+#ifndef KINTSUGI_SEPARATE_STAGES
+#include <kintsugi/reconstruct/detail/pu_triangulation.ipp>
+#endif
