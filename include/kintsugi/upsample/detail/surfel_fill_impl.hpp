@@ -408,37 +408,36 @@ public:
     /// Calls f(entry) for every surfel at distance at most r from c.
     template <class F>
     void for_each_in_ball(const Vec3& c, Scalar r, F&& f) const {
-        Coord l{}, u{};
-        for (int k = 0; k < 3; ++k) {
-            l[static_cast<std::size_t>(k)] = clamp_coord((c[k] - r - origin_[k]) * inv_);
-            u[static_cast<std::size_t>(k)] = clamp_coord((c[k] + r - origin_[k]) * inv_);
-        }
         const Scalar r2 = r * r;
-        for (std::int64_t z = l[2]; z <= u[2]; ++z)
-            for (std::int64_t y = l[1]; y <= u[1]; ++y)
-                for (std::int64_t x = l[0]; x <= u[0]; ++x) {
-                    const std::uint32_t id = find(pack({x, y, z}));
-                    if (id == none) continue;
-                    const Cell& cell = cells_[id];
-                    for (std::size_t k = 0; k < cell.p.size(); ++k)
-                        if ((cell.p[k] - c).squaredNorm() <= r2) f(Entry{cell.p[k], cell.rest[k].n, cell.rest[k].r, cell.rest[k].i});
-                }
+        (void)visit_cells(c, r, [&](const Cell& cell) {
+            for (std::size_t k = 0; k < cell.p.size(); ++k)
+                if ((cell.p[k] - c).squaredNorm() <= r2) f(Entry{cell.p[k], cell.rest[k].n, cell.rest[k].r, cell.rest[k].i});
+            return false;
+        });
     }
     /// Whether some surfel lies at distance at most r from c.
     [[nodiscard]] bool any_in_ball(const Vec3& c, Scalar r) const {
+        const Scalar r2 = r * r;
+        return visit_cells(c, r, [&](const Cell& cell) {
+            for (const Vec3& p : cell.p)
+                if ((p - c).squaredNorm() <= r2) return true;
+            return false;
+        });
+    }
+    /// Calls visit(cell) for the non-empty cells that meet the cube of half side r
+    /// around c (z, y, x order) until it returns true; returns whether one did.
+    template <class Visit>
+    bool visit_cells(const Vec3& c, Scalar r, Visit&& visit) const {
         Coord l{}, u{};
         for (int k = 0; k < 3; ++k) {
             l[static_cast<std::size_t>(k)] = clamp_coord((c[k] - r - origin_[k]) * inv_);
             u[static_cast<std::size_t>(k)] = clamp_coord((c[k] + r - origin_[k]) * inv_);
         }
-        const Scalar r2 = r * r;
         for (std::int64_t z = l[2]; z <= u[2]; ++z)
             for (std::int64_t y = l[1]; y <= u[1]; ++y)
                 for (std::int64_t x = l[0]; x <= u[0]; ++x) {
                     const std::uint32_t id = find(pack({x, y, z}));
-                    if (id == none) continue;
-                    for (const Vec3& p : cells_[id].p)
-                        if ((p - c).squaredNorm() <= r2) return true;
+                    if (id != none && visit(cells_[id])) return true;
                 }
         return false;
     }
