@@ -1,8 +1,9 @@
 // This Source Code Form is subject to the terms of the Mozilla Public
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
-// The example-based completion's body (on its working copy), compiled once for the tool
-// in a file of its own (KINTSUGI_SEPARATE_STAGES, kintsugi/core/stages.hpp; docs/build.md).
+// The example-based completion's body (on its working copy), compiled in a file of its own
+// (KINTSUGI_SEPARATE_STAGES, kintsugi/core/stages.hpp; docs/build.md): once for the
+// tool, and once with the tests' flags for the test programs (tests/CMakeLists.txt).
 #include <kintsugi/core/eigen_instances.hpp>
 #include <kintsugi/complete/example_completion.hpp>
 #include <kintsugi/complete/detail/complete_indexed.ipp>

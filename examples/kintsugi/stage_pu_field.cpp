@@ -1,9 +1,9 @@
 // This Source Code Form is subject to the terms of the Mozilla Public
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
-// The PU field's construction (octree, supports, partition of unity; steps 1-3), compiled
-// once for the tool in a file of its own (KINTSUGI_SEPARATE_STAGES,
-// kintsugi/core/stages.hpp; docs/build.md).
+// The PU field's construction (octree, supports, partition of unity; steps 1-3), compiled in a file of its own
+// (KINTSUGI_SEPARATE_STAGES, kintsugi/core/stages.hpp; docs/build.md): once for the
+// tool, and once with the tests' flags for the test programs (tests/CMakeLists.txt).
 #include <kintsugi/core/eigen_instances.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
 #include <kintsugi/reconstruct/detail/pu_field_build.ipp>
