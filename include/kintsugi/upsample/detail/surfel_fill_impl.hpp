@@ -346,9 +346,11 @@ inline void fill_plane(Scalar ri, Scalar rn, std::vector<Circle>& circles, Plane
 /// fills in parallel. A ball query visits the cells its box meets in (z, y, x) order
 /// and each cell's surfels in insertion order; the fill inserts in index order, so the
 /// order of a query's results depends on the surfels alone. Cells are found through an
-/// open-addressing hash table on packed coordinates. Why not UniformGrid: it holds
-/// appended points in a side table until it rebuilds (40 % of the sequential fill's time
-/// went to those queries on the 134K-point bench).
+/// open-addressing hash table on packed coordinates. Why not UniformGrid: its appended
+/// points wait in a side table (hashed by cell) until it rebuilds, and the other fields
+/// would be read by index; the same fill on UniformGrid (built, then appended to; same
+/// output bit for bit) took 25-30 % more CPU on the 134K-point bench
+/// (docs/methods/surfel_upsampling.md, "The output grid").
 class SurfelCells {
 public:
     using Coord = std::array<std::int64_t, 3>;
