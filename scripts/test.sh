@@ -85,15 +85,18 @@ if command -v clang++ >/dev/null; then
 else
   echo "== clang++ not found: header check and fuzzing skipped (scripts/setup.sh installs it)" >&2
 fi
-# Waits for the background clang build and prints its log; returns its status.
-finish_clang_build() {
-  [ -n "$clang_build" ] || return 0
+# Waits for a background step (its process id in the variable named $1, emptied once it
+# ended) and prints its log ($2); returns its status.
+finish_background() {
+  local -n pid=$1
+  [ -n "$pid" ] || return 0
   local status=0
-  wait "$clang_build" || status=$?
-  clang_build=
-  cat build/clang.log
+  wait "$pid" || status=$?
+  pid=
+  cat "$2"
   return $status
 }
+finish_clang_build() { finish_background clang_build build/clang.log; }
 
 # Release: the doctest programs too only when there is no sanitizer build to run them.
 unit_in_release=OFF
@@ -103,15 +106,7 @@ build_suite build/release -DCMAKE_BUILD_TYPE=Release -DKINTSUGI_BUILD_BENCH=OFF 
 # test, whose one long step (the README's snippets, one translation unit) would leave a core
 # idle for two minutes: it runs beside the clang build, and its log is shown after it.
 release_tests=
-# Waits for the background optimised suite and prints its log; returns its status.
-finish_release_tests() {
-  [ -n "$release_tests" ] || return 0
-  local status=0
-  wait "$release_tests" || status=$?
-  release_tests=
-  cat build/release/ctest.log
-  return $status
-}
+finish_release_tests() { finish_background release_tests build/release/ctest.log; }
 # If a later step fails, the background steps still finish and their logs are shown.
 trap 'rc=$?; if [ -n "$clang_build$release_tests" ]; then echo "== a step failed; the background steps run to their end" >&2; finish_clang_build || true; finish_release_tests || true; fi; rm -f "$times_file"; exit $rc' EXIT
 if [ $sanitize -eq 1 ]; then

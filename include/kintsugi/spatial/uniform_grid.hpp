@@ -473,10 +473,7 @@ private:
     /// of the cube of half side h centred at c: merged points, then appended ones.
     template <class Visit>
     void for_each_candidate(const Vec3& c, Scalar h, Visit&& visit) const {
-        for_each_cell(c, h, [&](std::uint32_t cidx) {
-            for (std::uint32_t j = start_[cidx]; j < start_[cidx + 1]; ++j) visit(static_cast<Index>(index_[j]), point_[j]);
-        });
-        if (!extra_point_.empty()) for_each_extra(c, h, visit);
+        for_each_candidate_slot(c, h, [&](std::size_t s, const Vec3& p) { visit(slot_index(s), p); });
     }
     /// for_each_candidate by slot (see slot_index): visit(slot, position).
     template <class Visit>
