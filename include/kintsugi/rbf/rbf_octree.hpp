@@ -30,6 +30,7 @@
 #include <kintsugi/field/isosurface.hpp>
 #include <kintsugi/field/partition_of_unity.hpp>
 #include <kintsugi/rbf/detail/rbf_solve.hpp>
+#include <kintsugi/spatial/bucket_grid.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 #include <kintsugi/spatial/morton.hpp>
 
@@ -38,13 +39,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <tuple>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 

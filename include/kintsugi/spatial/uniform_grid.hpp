@@ -36,6 +36,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/spatial/bucket_grid.hpp>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -50,7 +51,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
-#include <unordered_map>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -98,7 +99,6 @@ public:
         count_ = n;
         extra_point_.clear();
         extra_index_.clear();
-        extra_cells_.clear();
         lo_ = Vec3::Constant(std::numeric_limits<Scalar>::max());
         Vec3 hi = Vec3::Constant(std::numeric_limits<Scalar>::lowest());
         for (std::size_t i = 0; i < n; ++i) {
@@ -160,17 +160,12 @@ public:
                 pidx_[out] = 0;
             }
         }, 1024);
-        std::size_t cap = 16;
-        while (cap < 2 * keys.size()) cap *= 2;
-        mask_ = cap - 1;
-        table_key_.assign(cap, empty_);
-        table_cell_.assign(cap, 0);
-        for (std::size_t c = 0; c < keys.size(); ++c) {
-            std::size_t h = slot(keys[c]);
-            while (table_key_[h] != empty_) h = (h + 1) & mask_;
-            table_key_[h] = keys[c];
-            table_cell_[h] = static_cast<std::uint32_t>(c);
-        }
+        table_.reset(keys.size());
+        for (std::size_t c = 0; c < keys.size(); ++c) (void)table_.find_or_insert(keys[c], static_cast<std::uint32_t>(c));
+        // Appended points wait in buckets reaching 2^20 cells beyond lo_ on every side.
+        Vec3 extra_origin = lo_ - Vec3::Constant(std::ldexp(cell_, 20));
+        if (!extra_origin.allFinite()) extra_origin = lo_;  // near the largest doubles: only above lo_
+        extra_cells_.emplace(extra_origin, cell_);
         // The non-empty cells among the 3×3×3 around each cell, in (z, y, x) order: a
         // query of half side ≤ cell from a point inside a cell visits only those. The
         // keys are sorted and adding a fixed offset keeps them sorted, so each of the 27
@@ -238,11 +233,10 @@ public:
         const Index id = count_++;
         extra_point_.push_back(p);
         extra_index_.push_back(static_cast<std::uint32_t>(id));
-        std::uint64_t k = 0;
-        if (extra_point_.size() >= std::max<std::size_t>(1024, index_.size()) || !extra_key(p, k))
+        if (extra_point_.size() >= std::max<std::size_t>(1024, index_.size()) || !extra_cells_->in_range(p))
             merge();
         else
-            extra_cells_[k].push_back(static_cast<std::uint32_t>(extra_point_.size() - 1));
+            extra_cells_->insert(p, static_cast<std::uint32_t>(extra_point_.size() - 1));
         return id;
     }
 
@@ -494,44 +488,14 @@ private:
     /// by index; all of them in index order when the cube spans more cells than they fill.
     template <class Visit>
     void for_each_extra_slot(const Vec3& c, Scalar h, Visit&& visit) const {
-        const Vec3 a = (c - lo_) * inv_;
-        const Scalar r = h * inv_;
-        std::array<Scalar, 3> l{}, u{};
-        for (int k = 0; k < 3; ++k) {
-            l[k] = std::floor(a[k] - r);
-            u[k] = std::floor(a[k] + r);
-        }
-        const double box_cells = (u[0] - l[0] + 1) * (u[1] - l[1] + 1) * (u[2] - l[2] + 1);
-        if (!(box_cells <= static_cast<double>(extra_cells_.size())) || !in_extra_range(l) || !in_extra_range(u)) {
+        if (!(extra_cells_->cells_in_cube(c, h) <= static_cast<double>(extra_cells_->cell_count()))) {
             for (std::size_t j = 0; j < extra_point_.size(); ++j) visit(j);
             return;
         }
-        for (auto z = static_cast<std::int64_t>(l[2]); z <= static_cast<std::int64_t>(u[2]); ++z)
-            for (auto y = static_cast<std::int64_t>(l[1]); y <= static_cast<std::int64_t>(u[1]); ++y)
-                for (auto x = static_cast<std::int64_t>(l[0]); x <= static_cast<std::int64_t>(u[0]); ++x) {
-                    const auto it = extra_cells_.find(pack_extra(x, y, z));
-                    if (it == extra_cells_.end()) continue;
-                    for (std::uint32_t j : it->second) visit(std::size_t{j});
-                }
-    }
-    // Appended points are keyed by unclamped cell coordinates relative to lo_, offset
-    // by 2^20 (21 bits each): any point within 2^20 cells of the grid's corner.
-    static constexpr Scalar extra_reach_ = Scalar(1 << 20);
-    static bool in_extra_range(const std::array<Scalar, 3>& g) {
-        for (Scalar v : g)
-            if (!(v >= -extra_reach_ && v < extra_reach_)) return false;
-        return true;
-    }
-    static std::uint64_t pack_extra(std::int64_t x, std::int64_t y, std::int64_t z) {
-        const std::int64_t o = std::int64_t{1} << 20;
-        return key({x + o, y + o, z + o});
-    }
-    bool extra_key(const Vec3& p, std::uint64_t& k) const {
-        const Vec3 a = (p - lo_) * inv_;
-        const std::array<Scalar, 3> g{std::floor(a[0]), std::floor(a[1]), std::floor(a[2])};
-        if (!in_extra_range(g)) return false;
-        k = pack_extra(static_cast<std::int64_t>(g[0]), static_cast<std::int64_t>(g[1]), static_cast<std::int64_t>(g[2]));
-        return true;
+        (void)extra_cells_->visit_cells(c, h, [&](const std::vector<Vec3>&, const std::vector<std::uint32_t>& slots) {
+            for (std::uint32_t j : slots) visit(std::size_t{j});
+            return false;
+        });
     }
     /// Rebuilds the grid over the merged and the appended points (indices kept; the
     /// points the keep filter left out stay out).
@@ -624,17 +588,11 @@ private:
                 }
     }
 
-    static constexpr std::uint64_t empty_ = ~std::uint64_t{0};
-    static constexpr std::uint32_t none_ = ~std::uint32_t{0};
+    static constexpr std::uint64_t empty_ = detail::CellTable::empty;
+    static constexpr std::uint32_t none_ = detail::CellTable::none;
     static constexpr std::uint64_t mask21_ = (std::uint64_t{1} << 21) - 1;
-    std::uint32_t find(const std::array<std::int64_t, 3>& g) const { return find(key(g)); }
-    std::uint32_t find(std::uint64_t k) const {
-        for (std::size_t s = slot(k);; s = (s + 1) & mask_) {
-            if (table_key_[s] == k) return table_cell_[s];
-            if (table_key_[s] == empty_) return none_;
-        }
-    }
-    static constexpr std::int64_t max_coord_ = (std::int64_t{1} << 21) - 1;
+    std::uint32_t find(const std::array<std::int64_t, 3>& g) const { return table_.find(key(g)); }
+    static constexpr std::int64_t max_coord_ = detail::cell_coord_max;
     std::array<std::int64_t, 3> coord(const Vec3& p) const {
         const Vec3 a = (p - lo_) * inv_;
         std::array<std::int64_t, 3> g{};
@@ -642,30 +600,24 @@ private:
             g[k] = static_cast<std::int64_t>(std::floor(std::clamp(a[k], Scalar(0), static_cast<Scalar>(max_coord_))));
         return g;
     }
-    static std::uint64_t key(const std::array<std::int64_t, 3>& g) {
-        return static_cast<std::uint64_t>(g[0]) | (static_cast<std::uint64_t>(g[1]) << 21) |
-               (static_cast<std::uint64_t>(g[2]) << 42);
-    }
-    std::size_t slot(std::uint64_t k) const {
-        return static_cast<std::size_t>((k * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
-    }
+    static std::uint64_t key(const std::array<std::int64_t, 3>& g) { return detail::pack_cell(g); }
     Vec3 lo_ = Vec3::Zero();
     Scalar cell_ = 1, inv_ = 1;
     Scalar requested_cell_ = 0;  // the cell side asked for (0: none yet)
     std::size_t count_ = 0;      // indices given: built points + appends
-    // Appended points not merged yet: positions, indices, and their cells (key -> slots).
+    // Appended points not merged yet: positions, indices, and their places in those
+    // two arrays bucketed by cell (set by build()).
     std::vector<Vec3> extra_point_;
     std::vector<std::uint32_t> extra_index_;
-    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> extra_cells_;
-    std::vector<std::uint32_t> index_, start_, table_cell_, nbr_cell_;
+    std::optional<BucketGrid<std::uint32_t>> extra_cells_;
+    detail::CellTable table_;  // cell key -> cell (the merged points' runs)
+    std::vector<std::uint32_t> index_, start_, nbr_cell_;
     std::vector<std::size_t> nbr_start_;
     std::vector<Vec3> point_;
     // gather(): point_ − lo_ in single precision and the indices, by cell, each cell
     // padded to a multiple of 4 (pad_start_: the cells' first slots)
     std::vector<float> px_, py_, pz_;
     std::vector<std::uint32_t> pidx_, pad_start_;
-    std::vector<std::uint64_t> table_key_;
-    std::size_t mask_ = 0;
     // Scratch of build(), kept so that rebuilding a grid allocates nothing new.
     std::vector<std::pair<std::uint64_t, std::uint32_t>> order_;
     std::vector<std::uint64_t> keys_;

@@ -137,55 +137,25 @@ KINTSUGI_STAGE RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std
         // Merge: keep point i unless an earlier kept point lies within merge_dist (exact
         // duplicates always). Only points with such a neighbour ("suspects") take part;
         // closeness is symmetric, so they are closed under it. Greedy in index order
-        // over a hash grid of the kept suspects (cells of side merge_dist: a suspect's
-        // rivals lie in the 27 cells around it, and a cell holds at most a few kept
-        // points), so a cluster of m copies costs O(m), not O(m²).
+        // over a BucketGrid of the kept suspects (cells of side merge_dist: a suspect's
+        // rivals lie in the 2 x 2 x 2 cells its ball meets, and a cell holds at most a
+        // few kept points), so a cluster of m copies costs O(m), not O(m²).
         std::vector<std::uint8_t> keep(n1, 1);
         std::size_t near_removed = 0;
         {
-            const Scalar h = merge_dist > 0 ? merge_dist * Scalar(1.001) : Scalar(0);
-            using Key = std::array<std::int64_t, 3>;
-            struct KeyHash {
-                std::size_t operator()(const Key& k) const {
-                    std::uint64_t x = static_cast<std::uint64_t>(k[0]) * 0x9E3779B97F4A7C15ULL;
-                    x ^= static_cast<std::uint64_t>(k[1]) * 0xC2B2AE3D27D4EB4FULL + (x >> 29);
-                    x ^= static_cast<std::uint64_t>(k[2]) * 0x165667B19E3779F9ULL + (x >> 31);
-                    return static_cast<std::size_t>(x ^ (x >> 32));
-                }
-            };
-            auto key_of = [&](const Vec3& p) {
-                Key k{};
-                for (int a = 0; a < 3; ++a) {
-                    if (h > 0) k[a] = static_cast<std::int64_t>(std::floor((p[a] - box.min[a]) / h));
-                    else std::memcpy(&k[a], &p[a], sizeof(Scalar));  // exact duplicates share the key
-                }
-                return k;
-            };
-            std::unordered_map<Key, std::vector<std::uint32_t>, KeyHash> grid;
-            const int r = h > 0 ? 1 : 0;
+            // Cells of side merge_dist (exact duplicates only: the finest the box allows).
+            BucketGrid<std::uint32_t> grid(box.min, box.max, merge_dist > 0 ? merge_dist : box.diagonal() * 1e-9 + 1e-300);
             std::size_t seen = 0;
             for (std::size_t i = 0; i < n1; ++i) {
                 if (!suspect[i]) continue;
                 if (++seen % 65536 == 0) progress.check();
                 const Vec3& p = surface->point(i);
-                const Key k = key_of(p);
-                bool near = false;
-                for (int dz = -r; dz <= r && !near; ++dz)
-                    for (int dy = -r; dy <= r && !near; ++dy)
-                        for (int dx = -r; dx <= r && !near; ++dx) {
-                            const auto it = grid.find(Key{k[0] + dx, k[1] + dy, k[2] + dz});
-                            if (it == grid.end()) continue;
-                            for (const std::uint32_t j : it->second)
-                                if ((p - surface->point(j)).squaredNorm() <= merge2) {
-                                    near = true;
-                                    break;
-                                }
-                        }
+                const bool near = grid.any_in_ball(p, merge_dist);
                 if (near) {
                     keep[i] = 0;
                     ++near_removed;
                 } else {
-                    grid[k].push_back(static_cast<std::uint32_t>(i));
+                    grid.insert(p, static_cast<std::uint32_t>(i));
                 }
             }
         }

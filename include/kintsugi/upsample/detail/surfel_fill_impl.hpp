@@ -10,6 +10,7 @@
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/field/point_set_surface.hpp>
+#include <kintsugi/spatial/bucket_grid.hpp>
 #include <kintsugi/spatial/jet_fit.hpp>
 #include <kintsugi/spatial/uniform_grid.hpp>
 
@@ -337,167 +338,31 @@ inline void fill_plane(Scalar ri, Scalar rn, std::vector<Circle>& circles, Plane
     }
 }
 
-/// The surfels of a fill bucketed by cubic cells of side `side`, each cell holding
-/// copies of its surfels (the positions in one array, normal, radius and index in
-/// another), so that a query reads a few contiguous runs of memory. The fill takes cells
-/// twice as wide as its widest neighbour query: a query meets at most 2 x 2 x 2 cells
-/// (8 hash look-ups and cache misses instead of 27 with cells as wide as the query; on a
-/// surface the candidates tested are about as many), and the cells are the tiles it
-/// fills in parallel. A ball query visits the cells its box meets in (z, y, x) order
-/// and each cell's surfels in insertion order; the fill inserts in index order, so the
-/// order of a query's results depends on the surfels alone. Cells are found through an
-/// open-addressing hash table on packed coordinates. Why not UniformGrid: its appended
-/// points wait in a side table (hashed by cell) until it rebuilds, and the other fields
-/// would be read by index; the same fill on UniformGrid (built, then appended to; same
-/// output bit for bit) took 25-30 % more CPU on the 134K-point bench
-/// (docs/methods/surfel_upsampling.md, "The output grid").
-class SurfelCells {
-public:
-    using Coord = std::array<std::int64_t, 3>;
-    /// Cells of side at least `side` over points near the box [lo, hi] (cell coordinates
-    /// are clamped to 21 bits: the origin lies a box diagonal below lo; a point farther
-    /// out shares an edge cell, where the exact distance test still finds it).
-    SurfelCells(const Vec3& lo, const Vec3& hi, Scalar side) {
-        const Scalar pad = (hi - lo).norm() + side;
-        origin_ = lo - Vec3::Constant(pad);
-        const Scalar extent = (hi - lo).maxCoeff() + 2 * pad;
-        side_ = std::max(side, extent / static_cast<Scalar>(max_coord - 1));
-        inv_ = 1 / side_;
-        keys_.assign(1024, empty);
-        ids_.assign(1024, 0);
-    }
-    /// Integer coordinates of the cell holding p (clamped).
-    [[nodiscard]] Coord coord(const Vec3& p) const {
-        Coord g{};
-        for (int k = 0; k < 3; ++k) g[static_cast<std::size_t>(k)] = clamp_coord((p[k] - origin_[k]) * inv_);
-        return g;
-    }
-    /// Packs three coordinates below 2^21 into one key.
-    [[nodiscard]] static std::uint64_t pack(const Coord& g) {
-        return static_cast<std::uint64_t>(g[0]) | (static_cast<std::uint64_t>(g[1]) << 21) |
-               (static_cast<std::uint64_t>(g[2]) << 42);
-    }
-    /// The key of the cell holding p, with its colour (the parities of its three
-    /// coordinates: cells of one colour are at least one cell apart) in the top 3 bits.
-    [[nodiscard]] std::uint64_t coloured_key(const Vec3& p) const {
-        const Coord g = coord(p);
-        std::uint64_t colour = 0;
-        for (std::size_t a = 0; a < 3; ++a) colour |= static_cast<std::uint64_t>(g[a] & 1) << a;
-        return (colour << 61) | pack(g);
-    }
-    /// One surfel as stored: centre, unit normal, level-0 radius, index.
-    struct Entry {
-        Vec3 p, n;
-        Scalar r;
-        Index i;
-    };
-    void insert(const Entry& e) {
-        const Vec3& p = e.p;
-        const std::uint64_t k = pack(coord(p));
-        std::size_t s = slot(k);
-        while (keys_[s] != empty && keys_[s] != k) s = (s + 1) & (keys_.size() - 1);
-        if (keys_[s] == empty) {
-            keys_[s] = k;
-            ids_[s] = static_cast<std::uint32_t>(cells_.size());
-            cells_.emplace_back();
-            const std::uint32_t id = ids_[s];
-            if (2 * cells_.size() > keys_.size()) grow();
-            cells_[id].push_back(e);
-            return;
-        }
-        cells_[ids_[s]].push_back(e);
-    }
-    /// Calls f(entry) for every surfel at distance at most r from c.
-    template <class F>
-    void for_each_in_ball(const Vec3& c, Scalar r, F&& f) const {
-        const Scalar r2 = r * r;
-        (void)visit_cells(c, r, [&](const Cell& cell) {
-            for (std::size_t k = 0; k < cell.p.size(); ++k)
-                if ((cell.p[k] - c).squaredNorm() <= r2) f(Entry{cell.p[k], cell.rest[k].n, cell.rest[k].r, cell.rest[k].i});
-            return false;
-        });
-    }
-    /// Whether some surfel lies at distance at most r from c.
-    [[nodiscard]] bool any_in_ball(const Vec3& c, Scalar r) const {
-        const Scalar r2 = r * r;
-        return visit_cells(c, r, [&](const Cell& cell) {
-            for (const Vec3& p : cell.p)
-                if ((p - c).squaredNorm() <= r2) return true;
-            return false;
-        });
-    }
-    /// Calls visit(cell) for the non-empty cells that meet the cube of half side r
-    /// around c (z, y, x order) until it returns true; returns whether one did.
-    template <class Visit>
-    bool visit_cells(const Vec3& c, Scalar r, Visit&& visit) const {
-        Coord l{}, u{};
-        for (int k = 0; k < 3; ++k) {
-            l[static_cast<std::size_t>(k)] = clamp_coord((c[k] - r - origin_[k]) * inv_);
-            u[static_cast<std::size_t>(k)] = clamp_coord((c[k] + r - origin_[k]) * inv_);
-        }
-        for (std::int64_t z = l[2]; z <= u[2]; ++z)
-            for (std::int64_t y = l[1]; y <= u[1]; ++y)
-                for (std::int64_t x = l[0]; x <= u[0]; ++x) {
-                    const std::uint32_t id = find(pack({x, y, z}));
-                    if (id != none && visit(cells_[id])) return true;
-                }
-        return false;
-    }
-
-private:
-    static constexpr std::int64_t max_coord = (std::int64_t{1} << 21) - 1;
-    static constexpr std::uint64_t empty = ~std::uint64_t{0};
-    static constexpr std::uint32_t none = ~std::uint32_t{0};
-    static std::int64_t clamp_coord(Scalar a) {
-        return static_cast<std::int64_t>(std::floor(std::clamp(a, Scalar(0), static_cast<Scalar>(max_coord))));
-    }
-    [[nodiscard]] std::size_t slot(std::uint64_t k) const {
-        return static_cast<std::size_t>((k * 0x9E3779B97F4A7C15ull) >> 20) & (keys_.size() - 1);
-    }
-    [[nodiscard]] std::uint32_t find(std::uint64_t k) const {
-        for (std::size_t s = slot(k);; s = (s + 1) & (keys_.size() - 1)) {
-            if (keys_[s] == k) return ids_[s];
-            if (keys_[s] == empty) return none;
-        }
-    }
-    void grow() {
-        std::vector<std::uint64_t> keys(2 * keys_.size(), empty);
-        std::vector<std::uint32_t> ids(keys.size(), 0);
-        keys_.swap(keys);
-        ids_.swap(ids);
-        for (std::size_t s = 0; s < keys.size(); ++s) {
-            if (keys[s] == empty) continue;
-            std::size_t t = slot(keys[s]);
-            while (keys_[t] != empty) t = (t + 1) & (keys_.size() - 1);
-            keys_[t] = keys[s];
-            ids_[t] = ids[s];
-        }
-    }
-    Vec3 origin_ = Vec3::Zero();
-    Scalar side_ = 1, inv_ = 1;
-    std::vector<std::uint64_t> keys_;
-    std::vector<std::uint32_t> ids_;
-    /// A cell's surfels: the centres apart (all a query's distance test reads, 24 bytes
-    /// a candidate instead of 64), the rest next to them.
-    struct Cell {
-        struct Rest {
-            Vec3 n;
-            Scalar r;
-            Index i;
-        };
-        std::vector<Vec3> p;
-        std::vector<Rest> rest;
-        void push_back(const Entry& e) {
-            if (p.empty()) {
-                p.reserve(8);
-                rest.reserve(8);
-            }
-            p.push_back(e.p);
-            rest.push_back({e.n, e.r, e.i});
-        }
-    };
-    std::vector<Cell> cells_;
+/// What a fill's neighbour query reads of a surfel besides its centre: unit normal,
+/// level-0 radius, index. The surfels are kept in a BucketGrid<SurfelRest> with cells
+/// twice as wide as the widest query, so a query meets at most 2 x 2 x 2 cells (8 hash
+/// look-ups and cache misses instead of 27 with cells as wide as the query; on a surface
+/// the candidates tested are about as many), and the cells are the tiles the fill works
+/// on in parallel. The fill inserts in index order, so a query's results come in an
+/// order that depends on the surfels alone. Why not UniformGrid: its appended points
+/// wait apart until it rebuilds, and normal and radius would be read by index; the same
+/// fill on UniformGrid (built, then appended to; same output bit for bit) took 25-30 %
+/// more CPU on the 134K-point bench (docs/methods/surfel_upsampling.md, "The output grid").
+struct SurfelRest {
+    Vec3 n;
+    Scalar r;
+    Index i;
 };
+
+/// The tile of p in `cells` (its packed cell key) with the tile's colour (the parities
+/// of its three coordinates: tiles of one colour are at least one cell apart) in the top
+/// 3 bits: sorting by it groups a wave by colour, then by tile.
+inline std::uint64_t coloured_tile(const BucketGrid<SurfelRest>& cells, const Vec3& p) {
+    const detail::CellCoord g = cells.coord(p);
+    std::uint64_t colour = 0;
+    for (std::size_t a = 0; a < 3; ++a) colour |= static_cast<std::uint64_t>(g[a] & 1) << a;
+    return (colour << 61) | detail::pack_cell(g);
+}
 
 /// The MLS samples in a UniformGrid (cells as wide as the gather radius: one hash
 /// look-up, at most 27 cells a query) with their normals in the grid's slot order, so
