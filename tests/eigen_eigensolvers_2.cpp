@@ -4,11 +4,6 @@
 // Part of the dense Eigen solvers of kintsugi/core/eigen_instances.hpp, compiled once for
 // every test program: the header's dense half in one file takes about 115 s of CPU under
 // ASan + UBSan, so the test programs define it in three (eigen_eigensolvers_2.cpp,
-// eigen_eigensolvers_3.cpp, eigen_qr.cpp). A definition may follow the header's extern
-// declaration; one missing here fails the link.
+// eigen_eigensolvers_3.cpp, eigen_qr.cpp), each one of the header's groups.
+#define KINTSUGI_EIGEN_INSTANTIATE_DENSE_2X2
 #include <kintsugi/core/eigen_instances.hpp>
-
-template class Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d>;
-template class Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>;
-template Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>&
-Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>::compute<Eigen::Matrix2d>(const Eigen::EigenBase<Eigen::Matrix2d>&, int);

@@ -2,8 +2,5 @@
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // Part of the dense Eigen solvers of kintsugi/core/eigen_instances.hpp (see eigen_eigensolvers_2.cpp).
+#define KINTSUGI_EIGEN_INSTANTIATE_DENSE_3X3
 #include <kintsugi/core/eigen_instances.hpp>
-
-template class Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>;
-template Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>&
-Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>::compute<Eigen::Matrix3d>(const Eigen::EigenBase<Eigen::Matrix3d>&, int);
