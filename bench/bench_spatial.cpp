@@ -26,6 +26,14 @@
 // 1.74-1.78 s; CGAL 1.36-1.45 s. Default now 12 (and no sort of the k+1 results
 // unless two distances tie). Radius search of ~57 points: unsorted 0.96 s CPU,
 // sorted 1.44 s per 250K queries (1.5x).
+//
+// Growing outputs: a greedy thinning of the 1M points (a point is kept unless a kept
+// one lies within r; r = 1/3 of the median 10th-neighbour distance), the access
+// pattern of the surfel fill's output and the RBF fit's duplicate merge: a ball query
+// then an insertion, point after point. kintsugi::BucketGrid (insert in O(1)) against
+// kintsugi::UniformGrid (append: held apart, merged when doubled), one thread each;
+// same kept count. (CGAL's Kd_tree is no peer here: a query after an insertion
+// rebuilds the whole tree, so the loop is quadratic.)
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
@@ -33,13 +41,17 @@
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/io/read.hpp>
+#include <kintsugi/spatial/bucket_grid.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
+#include <kintsugi/spatial/uniform_grid.hpp>
 
 #include <CGAL/Kd_tree.h>
 #include <CGAL/Orthogonal_k_neighbor_search.h>
 #include <CGAL/Search_traits_3.h>
 #include <CGAL/Simple_cartesian.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -201,6 +213,63 @@ void BM_cgal_knn10_1thread(benchmark::State& state) {
 }
 BENCHMARK(BM_cgal_knn10_1thread)->Unit(benchmark::kMillisecond)->Iterations(2);
 
+/// The thinning radius: 1/3 of the median 10th-neighbour distance of a subsample.
+double thinning_radius() {
+    static const double r = [] {
+        const auto& p = data().points;
+        const ks::KdTree tree(p);
+        std::vector<double> d;
+        std::vector<ks::Neighbor> nn;
+        for (std::size_t i = 0; i < p.size(); i += 997) {
+            tree.knn(p[i], kK, nn);
+            d.push_back(std::sqrt(nn.back().squared_distance));
+        }
+        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+        return d[d.size() / 2] / 3;
+    }();
+    return r;
+}
+
+void BM_thin_bucket_grid(benchmark::State& state) {
+    const auto& p = data().points;
+    const double r = thinning_radius();
+    ks::BoundingBox box;
+    for (const auto& x : p) box.extend(x);
+    std::size_t kept = 0;
+    for (auto _ : state) {
+        ks::BucketGrid<ks::Index> grid(box.min, box.max, r);
+        kept = 0;
+        for (std::size_t i = 0; i < p.size(); ++i)
+            if (!grid.any_in_ball(p[i], r)) {
+                grid.insert(p[i], i);
+                ++kept;
+            }
+    }
+    state.counters["kept"] = static_cast<double>(kept);
+}
+BENCHMARK(BM_thin_bucket_grid)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+void BM_thin_uniform_grid(benchmark::State& state) {
+    const auto& p = data().points;
+    const double r = thinning_radius();
+    std::size_t kept = 0;
+    for (auto _ : state) {
+        ks::UniformGrid grid(r);
+        kept = 0;
+        for (std::size_t i = 0; i < p.size(); ++i) {
+            bool near = false;
+            grid.for_each_in_ball(p[i], r, [&](ks::Index, double) { near = true; });
+            if (!near) {
+                grid.append(p[i]);
+                ++kept;
+            }
+        }
+    }
+    state.counters["kept"] = static_cast<double>(kept);
+}
+BENCHMARK(BM_thin_uniform_grid)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -215,5 +284,7 @@ int main(int argc, char** argv) {
             r.print_cpu_ratio("BM_kintsugi_knn10_leaf/" + std::to_string(leaf), "BM_cgal_knn10_1thread");
         std::printf("Radius search, unsorted vs sorted (1 thread):\n");
         r.print_cpu_ratio("BM_kintsugi_radius60/0", "BM_kintsugi_radius60/1");
+        std::printf("Greedy thinning of the 1M points at r = %.3g (1 thread):\n", thinning_radius());
+        r.print_cpu_ratio("BM_thin_bucket_grid", "BM_thin_uniform_grid");
     });
 }

@@ -37,6 +37,16 @@ inline double peak_rss_mb() {
     return 0;
 }
 
+/// Resets the peak resident set (VmHWM) to the present one (Linux: /proc/self/clear_refs,
+/// "5"), so that peak_rss_mb() then gives the peak of what follows: per-stage peaks.
+/// Returns false when the kernel does not allow it.
+inline bool reset_peak_rss() {
+    std::ofstream out("/proc/self/clear_refs");
+    out << "5";
+    out.flush();
+    return static_cast<bool>(out);
+}
+
 /// Console output as usual, plus a summary callback at the end that reads the runs
 /// back by name (to print ratios against a peer measured in the same run).
 class RatioReporter : public benchmark::ConsoleReporter {

@@ -320,6 +320,9 @@ private:
             const Scalar wide2 = params_.min_support_factor * params_.min_support_factor * d1;
             if (wide2 > dk2) {
                 if (!(wide2 < room2)) return false;
+                // Widened: the k above in slot order, then the others in the order
+                // nth_element left them (fixed by the samples and x alone, so the
+                // same whatever the thread count, but not the ball's order).
                 nn.clear();
                 for (const auto& c : local.cand)
                     if (c.d2 <= wide2) nn.push_back({c.slot, c.d2});

@@ -22,7 +22,7 @@
 /// by Δω of eq. (1) (a hexagonal layout for equal radii), the small-gap rules (b)-(d),
 /// and the slide of eq. (2) when a new centre falls inside an existing disk; the new
 /// surfels are back-projected onto the MLS surface of the INPUT points (APSS,
-/// field/point_set_surface.hpp; kd-tree and a UniformGrid on the input, hashed cells on the output) and
+/// field/point_set_surface.hpp; kd-tree and a UniformGrid on the input, a BucketGrid on the output) and
 /// processed in turn, in parallel over cells far enough apart (deterministic: see
 /// detail::surfel_fill::run). Rounds repeat over the surfels whose placed disks leave
 /// part of their boundary open until a round finds no gap; the surfels whose last fill dropped a placement are
