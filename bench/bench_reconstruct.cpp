@@ -240,7 +240,8 @@ Outcome run_isolated(std::size_t n, Method&& method) {
             method(pts, mesh, c);
             c.cpu_s = cpu_seconds() - c0;
             c.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-            c.peak_rss_mb = peak_rss_mb();
+            // A method that resets the peak (per-stage peaks) leaves the earlier ones in c.
+            c.peak_rss_mb = std::max({peak_rss_mb(), c.peak_rss_mb, c.input_rss_mb});
             if (c.ok) measure_accuracy(c, mesh);
         } catch (const std::bad_alloc&) {
             c.ok = 0;
@@ -384,6 +385,7 @@ void BM_PUGraphcut(benchmark::State& state) {
                 c.stage_peak_mb[std::size_t(c.n_stages)] = std::size_t(c.n_stages) < peaks.size() ? peaks[std::size_t(c.n_stages)] : 0;
                 c.stage_s[std::size_t(c.n_stages++)] = t.seconds;
             }
+            for (double mb : peaks) c.peak_rss_mb = std::max(c.peak_rss_mb, mb);  // the run's peak, all stages
             mesh = std::move(r.mesh);
         });
     }
