@@ -51,6 +51,14 @@
 //     CGAL Poisson at 2M (2026-11-23): not finished after 901 s wall / 819 s CPU, 8.9 GB
 //     resident and growing, when killed at the time limit: > 29x the PU wall time, > 4.4x
 //     its memory.
+// 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
+// took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
+// (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
+// 0.682 %, truth to result 0.0113 %, area ratio 1.006, 1.97M supports; stages (wall s /
+// peak MB during the stage): pu_octree 18.49 / 6815, pu_cover 60.35 / 5162, pu_index
+// 1.65 / 5133, triangulation 73.99 / 5073, graph_cut 14.36 / 6097, marching_tetrahedra
+// 5.96 / 7846, smoothing 0.54 / 6470. (That run printed the last stage's peak as the
+// run's; the run's peak is now the largest of the stages'.)
 // Under load 2.4-3.1 (2026-12-01 13:07 UTC, compilers on the other core): 100K PU 2.28 s
 // wall / 2.27 s CPU; 2M PU 41.4 s / 41.2 s (pu_cover 16.88, triangulation 16.63).
 // Under load 3.3-5.3 (2026-11-23 18:41 UTC): 100K PU 4.78 s wall / 3.10 s CPU, Poisson
