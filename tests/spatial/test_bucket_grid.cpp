@@ -7,6 +7,8 @@
 // grid's range; bad input.
 #include <doctest/doctest.h>
 
+#include "spatial/random_cloud.hpp"
+
 #include <kintsugi/spatial/bucket_grid.hpp>
 
 #include <algorithm>
@@ -22,13 +24,7 @@ namespace ks = kintsugi;
 
 namespace {
 
-std::vector<ks::Vec3> cloud(std::size_t n, unsigned seed, double spread = 1) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-spread, spread);
-    std::vector<ks::Vec3> p(n);
-    for (auto& x : p) x = ks::Vec3(u(rng), u(rng), u(rng));
-    return p;
-}
+using ks::test::cloud;
 
 struct Value {  // a caller's payload: kept beside its point
     ks::Index id;

@@ -6,6 +6,8 @@
 // over std::vector, an Eigen matrix view and a user struct through a projection.
 #include <doctest/doctest.h>
 
+#include "spatial/random_cloud.hpp"
+
 #include <kintsugi/adapters/eigen.hpp>
 #include <kintsugi/adapters/projection.hpp>
 #include <kintsugi/adapters/std_vector.hpp>
@@ -27,13 +29,7 @@ namespace {
 
 using Hits = std::vector<std::pair<ks::Index, double>>;
 
-std::vector<ks::Vec3> cloud(std::size_t n, unsigned seed, double spread = 1) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-spread, spread);
-    std::vector<ks::Vec3> p(n);
-    for (auto& x : p) x = ks::Vec3(u(rng), u(rng), u(rng));
-    return p;
-}
+using ks::test::cloud;
 
 // What a cube (ball = false) or ball query must find, by index.
 Hits brute(const std::vector<ks::Vec3>& pts, const ks::Vec3& c, double h, bool ball) {
