@@ -40,6 +40,16 @@ inline void check_face_indices(const IndexedMesh& m, const char* function) {
                                     " vertices; fix or remove the face");
 }
 
+/// Throws invalid_input naming `function` if a vertex of m has a NaN or infinite coordinate
+/// (the first one) or a face uses a vertex index out of range.
+inline void check_mesh_values(const IndexedMesh& m, const char* function) {
+    for (std::size_t v = 0; v < m.vertices.size(); ++v)
+        if (!m.vertices[v].allFinite())
+            throw invalid_input(std::string(function) + ": vertex " + std::to_string(v) +
+                                " has a NaN or infinite coordinate; remove or fix it first");
+    check_face_indices(m, function);
+}
+
 /// (b - a) x (c - a) of face f: its direction is the normal, its norm twice the area.
 inline Vec3 face_cross(const IndexedMesh& m, Index f) {
     const Face& t = m.faces[f];

@@ -54,6 +54,7 @@
 #include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
 #include <Eigen/Cholesky>
@@ -241,16 +242,7 @@ template <TriangleMesh M>
         throw invalid_input(fn + ": rings = " + std::to_string(params.rings) + " must be between 1 and 8");
     IndexedMesh m = kintsugi::to_indexed_mesh(mesh);
     if (m.faces.empty()) throw invalid_input(fn + ": the mesh has no faces; pass a non-empty triangle mesh");
-    for (std::size_t v = 0; v < m.vertices.size(); ++v)
-        if (!m.vertices[v].allFinite())
-            throw invalid_input(fn + ": vertex " + std::to_string(v) +
-                                " has a NaN or infinite coordinate; remove or fix it first");
-    for (std::size_t t = 0; t < m.faces.size(); ++t)
-        for (Index v : m.faces[t])
-            if (v >= m.vertices.size())
-                throw invalid_input(fn + ": face " + std::to_string(t) + " uses vertex " + std::to_string(v) +
-                                    " but the mesh has " + std::to_string(m.vertices.size()) +
-                                    " vertices; fix or remove the face");
+    detail::check_mesh_values(m, fn.c_str());
     const detail::ScaleFrame frame = detail::scale_frame(m.vertices);
     frame.to_local(m.vertices);
     detail::Progress progress(params.control);

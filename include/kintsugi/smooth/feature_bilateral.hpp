@@ -129,6 +129,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/noise_level.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
@@ -256,16 +257,7 @@ inline void check_mesh(const char* fn, const IndexedMesh& m) {
     if (m.faces.empty()) throw invalid_input(f + ": the mesh has no faces; pass a non-empty triangle mesh");
     if (m.faces.size() >= (std::size_t{1} << 32))
         throw invalid_input(f + ": more than 2^32 - 1 faces are not supported; split the mesh");
-    for (std::size_t v = 0; v < m.vertices.size(); ++v)
-        if (!m.vertices[v].allFinite())
-            throw invalid_input(f + ": vertex " + std::to_string(v) +
-                                " has a NaN or infinite coordinate; remove or fix it first");
-    for (std::size_t t = 0; t < m.faces.size(); ++t)
-        for (Index v : m.faces[t])
-            if (v >= m.vertices.size())
-                throw invalid_input(f + ": face " + std::to_string(t) + " uses vertex " + std::to_string(v) +
-                                    " but the mesh has " + std::to_string(m.vertices.size()) +
-                                    " vertices; fix or remove the face");
+    detail::check_mesh_values(m, fn);
 }
 
 inline void check_positive(const std::string& fn, const char* name, Scalar x) {
