@@ -143,8 +143,10 @@ KINTSUGI_STAGE RBFOctreeResult detail::rbf_octree_fit(std::vector<Vec3> pts, std
         std::vector<std::uint8_t> keep(n1, 1);
         std::size_t near_removed = 0;
         {
-            // Cells of side merge_dist (exact duplicates only: the finest the box allows).
-            BucketGrid<std::uint32_t> grid(box.min, box.max, merge_dist > 0 ? merge_dist : box.diagonal() * 1e-9 + 1e-300);
+            // Cells of side merge_dist; for exact duplicates only, the finest the box allows
+            // (the grid enlarges a side too small for 2^21 cells per axis).
+            BucketGrid<std::uint32_t> grid(box.min, box.max,
+                                           merge_dist > 0 ? merge_dist : std::numeric_limits<Scalar>::min());
             std::size_t seen = 0;
             for (std::size_t i = 0; i < n1; ++i) {
                 if (!suspect[i]) continue;
