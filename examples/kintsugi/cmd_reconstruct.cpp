@@ -83,11 +83,16 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                            real_text(kcli::reconstruct::rbf_default_smoothing()) + ", 0 interpolates)")
             ->capture_default_str()
             ->check(kcli::real(0.0, 1e6));
+    cmd.add_option("--max-handle-loop", p.max_handle_loop,
+                   "Cut handles/tunnels a loop of at most this many median mesh edges goes around (0 keeps all)")
+        ->capture_default_str()
+        ->check(kcli::real(0.0, 1e6));
     cmd.add_option("--labeling", o->labeling, "graphcut, or sign (the PU field's sign, for comparison)")
         ->capture_default_str()
         ->check(CLI::IsMember({"graphcut", "sign"}));
     cmd.add_flag("--inward-normals", o->inward, "Input normals point into the object (the paper's convention)");
-    for (const char* name : {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--labeling"})
+    for (const char* name :
+         {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--max-handle-loop", "--labeling"})
         o->pu_only.push_back(cmd.get_option(name));
     o->rbf = kcli::reconstruct::add_rbf_options(cmd, o->rbf_only);
     return [o, &ctx] {
@@ -143,6 +148,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["k"] = p.k;
         j["parameters"]["triangulation_weight_scale"] = p.triangulation_weight_scale;
         j["parameters"]["smoothing_iterations"] = p.smoothing_iterations;
+        j["parameters"]["max_handle_loop"] = p.max_handle_loop;
         j["parameters"]["labeling"] = o->labeling;
         j["parameters"]["inward_normals"] = o->inward;
         j["parameters"]["seed"] = ctx.common.seed;
@@ -162,6 +168,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["smoothed_vertices"] = r.smoothed_vertices;
         j["far_points"] = r.far_points;
         j["parts"] = r.parts;
+        j["handles_removed"] = r.handles_removed;
         j["vertices"] = rep.vertices;
         j["faces"] = rep.faces;
         j["components"] = rep.components;
@@ -173,6 +180,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                  std::to_string(r.graph_nodes) + " nodes / " + std::to_string(r.graph_edges) + " edges) -> " +
                  std::to_string(rep.vertices) + " vertices, " + std::to_string(rep.faces) + " faces, " +
                  std::to_string(rep.components) + " component(s), genus " + std::to_string(rep.genus) +
+                 (r.handles_removed > 0 ? " (" + std::to_string(r.handles_removed) + " small handle(s) cut)" : "") +
                  (rep.closed && rep.manifold ? ", closed manifold" : "") + " -> " + o->output);
     };
 }

@@ -73,6 +73,78 @@ inline void sample_shape(const Shape& s, std::size_t n, double noise, double out
     }
 }
 
+/// A CAD-like part of genus 3 with sharp edges: the box [-3, 3] x [-1, 1] x [-0.6, 0.6]
+/// pierced along z by three square holes of side 0.8 centred at x = -1.8, 0, 1.8.
+struct HoledBlock {
+    static constexpr double hx = 3, hy = 1, hz = 0.6, hole = 0.4;
+    static constexpr double centres[3] = {-1.8, 0.0, 1.8};
+    /// Signed distance (< 0 inside; exact near the faces, a bound near the edges).
+    [[nodiscard]] static double sdf(const Vec3& p) {
+        const Vec3 q = p.cwiseAbs() - Vec3(hx, hy, hz);
+        const double box = q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+        double holes = -1e300;
+        for (const double c : centres) holes = std::max(holes, -std::max(std::abs(p.x() - c), std::abs(p.y())) + hole);
+        return std::max(box, holes);
+    }
+    [[nodiscard]] static double diagonal() { return 2 * std::sqrt(hx * hx + hy * hy + hz * hz); }
+    /// n area-uniform samples with exact outward normals, Gaussian noise of sigma =
+    /// noise x diagonal / sqrt(3) per coordinate, then round(outliers x n) uniform points
+    /// in the box enlarged 1.1 times with random unit normals.
+    static void sample(std::size_t n, double noise, double outliers, std::uint64_t seed, std::vector<Vec3>& pts,
+                       std::vector<Vec3>& nrm) {
+        std::mt19937_64 rng(seed);
+        std::normal_distribution<double> g(0, 1);
+        std::uniform_real_distribution<double> u(0, 1);
+        pts.clear();
+        nrm.clear();
+        const double cap = 4 * hx * hy - 3 * 4 * hole * hole;  // top or bottom, holes removed
+        const double areas[4] = {2 * cap, 2 * (2 * hy) * (2 * hz), 2 * (2 * hx) * (2 * hz), 3 * 4 * (2 * hole) * (2 * hz)};
+        const double total = areas[0] + areas[1] + areas[2] + areas[3];
+        const double sigma = noise * diagonal() / std::sqrt(3.0);
+        for (std::size_t i = 0; i < n; ++i) {
+            double a = u(rng) * total;
+            int k = 0;
+            while (k < 3 && a >= areas[k]) a -= areas[k++];
+            const double s = u(rng) * 2 - 1, t = u(rng) * 2 - 1, side = u(rng) < 0.5 ? -1 : 1;
+            Vec3 p, q;
+            if (k == 0) {  // top or bottom, outside the holes (rejection)
+                p = Vec3(s * hx, t * hy, side * hz);
+                bool in_hole = false;
+                for (const double c : centres)
+                    in_hole = in_hole || (std::abs(p.x() - c) < hole && std::abs(p.y()) < hole);
+                if (in_hole) {
+                    --i;
+                    continue;
+                }
+                q = Vec3(0, 0, side);
+            } else if (k == 1) {
+                p = Vec3(side * hx, s * hy, t * hz);
+                q = Vec3(side, 0, 0);
+            } else if (k == 2) {
+                p = Vec3(s * hx, side * hy, t * hz);
+                q = Vec3(0, side, 0);
+            } else {  // a hole's wall; the normal points into the hole
+                const double c = centres[std::min<std::size_t>(2, static_cast<std::size_t>(u(rng) * 3))];
+                if (u(rng) < 0.5) {
+                    p = Vec3(c + side * hole, s * hole, t * hz);
+                    q = Vec3(-side, 0, 0);
+                } else {
+                    p = Vec3(c + s * hole, side * hole, t * hz);
+                    q = Vec3(0, -side, 0);
+                }
+            }
+            pts.push_back(p + sigma * Vec3(g(rng), g(rng), g(rng)));
+            nrm.push_back(q);
+        }
+        const Vec3 e = 1.1 * Vec3(2 * hx, 2 * hy, 2 * hz);
+        const auto m = static_cast<std::size_t>(std::llround(outliers * static_cast<double>(n)));
+        for (std::size_t i = 0; i < m; ++i) {
+            pts.push_back(Vec3((u(rng) - 0.5) * e.x(), (u(rng) - 0.5) * e.y(), (u(rng) - 0.5) * e.z()));
+            nrm.push_back(Vec3(g(rng), g(rng), g(rng)).normalized());
+        }
+    }
+};
+
 /// Area-weighted samples of a mesh (deterministic).
 inline std::vector<Vec3> sample_mesh(const kintsugi::IndexedMesh& m, std::size_t n, std::uint64_t seed,
                                      std::vector<Vec3>* normals = nullptr) {

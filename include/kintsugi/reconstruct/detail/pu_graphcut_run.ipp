@@ -17,7 +17,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
     PUGraphcutResult res;
     res.points = pts.size();
     // Fractions of the overall progress per stage (measured on the 100K bunny).
-    constexpr double pu_end = 0.35, tri_end = 0.7, cut_end = 0.85, mt_end = 0.92;
+    constexpr double pu_end = 0.35, tri_end = 0.7, cut_end = 0.85, mt_end = 0.92, smooth_end = 0.96;
 
     // Steps 1-3: the PU field.
     PUFieldResult pu = PUField::build_from(std::move(pts), std::move(nrm),
@@ -168,7 +168,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         // Step 7: selective Taubin smoothing of the vertices on same-sign edges and on
         // edges with an end whose support holds fewer than 10 input points; before it,
         // the thin-plate fill of the unsupported vertices (fill_radius_fraction).
-        progress.stage("smoothing", mt_end, 1.0);
+        progress.stage("smoothing", mt_end, smooth_end);
         constexpr std::size_t few_points = 10;
         auto sparse = [&](Index v) { return is_outer[v] || sup[tm.site[v]].point_count < few_points; };
         std::vector<std::uint8_t> movable(mt.mesh.vertices.size(), 0);
@@ -192,6 +192,28 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             TaubinParams tp;
             tp.iterations = params.smoothing_iterations;
             res.smoothed_vertices = taubin_smooth(mt.mesh.vertices, topo, movable, tp, progress);
+        }
+        // Topological noise: handles and tunnels a loop of at most max_handle_loop x the
+        // median edge goes around (kintsugi::remove_small_handles).
+        progress.stage("handles", smooth_end, 1.0);
+        if (params.max_handle_loop > 0 && !topo.edges().empty()) {
+            std::vector<Scalar> len(topo.num_edges());
+            for (Index e = 0; e < len.size(); ++e)
+                len[e] = (mt.mesh.vertices[topo.edges()[e][0]] - mt.mesh.vertices[topo.edges()[e][1]]).norm();
+            std::nth_element(len.begin(), len.begin() + static_cast<std::ptrdiff_t>(len.size() / 2), len.end());
+            HandleParams hp;
+            hp.max_loop_length = params.max_handle_loop * len[len.size() / 2];
+            hp.control = sub_control(control, smooth_end, 1.0);
+            // The mesh is closed and manifold by construction; should smoothing ever
+            // flatten a face to zero area, the cut is skipped rather than the run failed.
+            const TopologyReport rep = topology_report(mt.mesh.vertices, mt.mesh.faces);
+            if (rep.closed && rep.manifold && rep.degenerate_faces == 0 && rep.isolated_vertices == 0) {
+                const HandleResult hr = remove_small_handles_indexed(mt.mesh.vertices, mt.mesh.faces, hp, rep.genus,
+                                                                     rep.components,
+                                                                     "kintsugi::reconstruct_pu_graphcut: ");
+                if (hr.status == Status::cancelled) throw cancelled_exception{};
+                res.handles_removed = hr.handles_removed;
+            }
         }
         res.mesh = std::move(mt.mesh);
         auto t = progress.finish();
@@ -292,7 +314,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
         for (std::size_t R::*count :
              {&R::octree_cells, &R::supports, &R::hidden_supports, &R::outer_vertices, &R::tetrahedra,
               &R::graph_nodes, &R::graph_edges, &R::inside_vertices, &R::sign_disagreements, &R::same_sign_vertices,
-              &R::smoothed_vertices, &R::removed_regions, &R::filled_vertices})
+              &R::smoothed_vertices, &R::removed_regions, &R::filled_vertices, &R::handles_removed})
             res.*count += r.*count;
         res.cut_value += r.cut_value;
         for (const StageTiming& t : r.timings) {
