@@ -55,7 +55,7 @@ ks::IndexedMesh shape_mesh() {
     box.extend(ks::Vec3(-1.6, -1.1, -3.2));
     box.extend(ks::Vec3(1.6, 1.1, 1.8));
     ks::IndexedMesh m;
-    const auto r = ks::extract_isosurface(shape, ks::IsoRegion::full(ks::IsoGrid::fit(box, 125)), m);
+    const auto r = ks::extract_isosurface(shape, ks::IsoRegion::full(ks::IsoGrid::fit(box, 90)), m);
     REQUIRE(r.status == ks::Status::ok);
     return m;
 }
