@@ -5,6 +5,10 @@
 // noise and uniform outliers, and mesh sampling with holes.
 #pragma once
 
+#include <doctest/doctest.h>
+
+#include "closed_mesh.hpp"
+
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/geometry.hpp>
@@ -182,6 +186,46 @@ inline void distance_to_shape(const kintsugi::IndexedMesh& m, const Shape& s, do
         max = std::max(max, d);
     }
     mean /= static_cast<double>(pts.size());
+}
+
+/// The reconstruction's output guarantee (closed, manifold, oriented outward, no
+/// degenerate face, no unused vertex); returns the report it was checked on.
+inline kintsugi::TopologyReport check_guarantee(const kintsugi::IndexedMesh& m) {
+    const auto r = check_closed_manifold(m);
+    CHECK(r.isolated_vertices == 0);
+    CHECK(kintsugi::signed_volume(m) > 0);  // outward
+    return r;
+}
+
+/// The acceptance input on a real mesh: `draw` seeded samples, `holes` holes of radius
+/// hole_radius x the diagonal cut around random vertices, the first `surface` samples
+/// outside them with 0.1 % Gaussian noise, then `outliers` uniform points (random
+/// normals) in the bounding box enlarged 1.1 times.
+inline void holey_noisy_sample(const kintsugi::IndexedMesh& ref, const kintsugi::BoundingBox& bb, std::size_t draw,
+                               std::size_t surface, std::size_t outliers, int holes, double hole_radius,
+                               std::uint64_t seed, std::vector<kintsugi::Vec3>& pts,
+                               std::vector<kintsugi::Vec3>& nn) {
+    const double diag = bb.diagonal();
+    std::vector<kintsugi::Vec3> nrm;
+    const std::vector<kintsugi::Vec3> all = kintsugi_test::sample_mesh(ref, draw, seed, &nrm);
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> g(0, 1);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<kintsugi::Vec3> centres;
+    for (int h = 0; h < holes; ++h) centres.push_back(ref.vertices[rng() % ref.vertices.size()]);
+    for (std::size_t i = 0; i < all.size() && pts.size() < surface; ++i) {
+        bool in_hole = false;
+        for (const auto& h : centres) in_hole = in_hole || (all[i] - h).norm() < hole_radius * diag;
+        if (in_hole) continue;
+        pts.push_back(all[i] + 0.001 * diag / std::sqrt(3.0) * kintsugi::Vec3(g(rng), g(rng), g(rng)));
+        nn.push_back(nrm[i]);
+    }
+    REQUIRE(pts.size() == surface);
+    const kintsugi::Vec3 c = bb.center(), e = 1.1 * bb.extent();
+    while (pts.size() < surface + outliers) {
+        pts.push_back(c + kintsugi::Vec3((u(rng) - .5) * e.x(), (u(rng) - .5) * e.y(), (u(rng) - .5) * e.z()));
+        nn.push_back(kintsugi::Vec3(g(rng), g(rng), g(rng)).normalized());
+    }
 }
 
 }  // namespace kintsugi_test

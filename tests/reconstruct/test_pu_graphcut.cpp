@@ -4,10 +4,10 @@
 // PU + graph-cut reconstruction (Nagai, Ohtake, Suzuki 2011): accuracy with outliers,
 // the output guarantee, the graph cut against the plain sign, containers,
 // determinism, bad input, cancellation.
-#include "test_data.hpp"
 #include <doctest/doctest.h>
 
 #include "reconstruct/pu_test_data.hpp"
+#include "test_data.hpp"
 
 #include <kintsugi/adapters/cgal.hpp>
 #include <kintsugi/adapters/projection.hpp>
@@ -33,20 +33,10 @@
 
 namespace ks = kintsugi;
 using kintsugi_test::Shape;
+using kintsugi_test::check_guarantee;
+using kintsugi_test::holey_noisy_sample;
 
 namespace {
-
-/// Checks the output guarantee and returns the topology report it was checked on.
-ks::TopologyReport check_guarantee(const ks::IndexedMesh& m) {
-    const auto r = ks::topology_report(m);
-    CHECK(r.closed);
-    CHECK(r.manifold);
-    CHECK(r.consistently_oriented);
-    CHECK(r.degenerate_faces == 0);
-    CHECK(r.isolated_vertices == 0);
-    CHECK(ks::signed_volume(m) > 0);  // outward
-    return r;
-}
 
 struct Outcome {
     std::size_t components = 0;
@@ -68,36 +58,6 @@ Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* k
     o.max /= s.diagonal();
     if (keep) *keep = r;
     return o;
-}
-
-/// The acceptance input on a real mesh: `draw` seeded samples, `holes` holes of radius
-/// hole_radius x the diagonal cut around random vertices, the first `surface` samples
-/// outside them with 0.1 % Gaussian noise, then `outliers` uniform points (random
-/// normals) in the bounding box enlarged 1.1 times.
-void holey_noisy_sample(const ks::IndexedMesh& ref, const ks::BoundingBox& bb, std::size_t draw, std::size_t surface,
-                        std::size_t outliers, int holes, double hole_radius, std::uint64_t seed,
-                        std::vector<ks::Vec3>& pts, std::vector<ks::Vec3>& nn) {
-    const double diag = bb.diagonal();
-    std::vector<ks::Vec3> nrm;
-    const std::vector<ks::Vec3> all = kintsugi_test::sample_mesh(ref, draw, seed, &nrm);
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> g(0, 1);
-    std::uniform_real_distribution<double> u(0, 1);
-    std::vector<ks::Vec3> centres;
-    for (int h = 0; h < holes; ++h) centres.push_back(ref.vertices[rng() % ref.vertices.size()]);
-    for (std::size_t i = 0; i < all.size() && pts.size() < surface; ++i) {
-        bool in_hole = false;
-        for (const auto& h : centres) in_hole = in_hole || (all[i] - h).norm() < hole_radius * diag;
-        if (in_hole) continue;
-        pts.push_back(all[i] + 0.001 * diag / std::sqrt(3.0) * ks::Vec3(g(rng), g(rng), g(rng)));
-        nn.push_back(nrm[i]);
-    }
-    REQUIRE(pts.size() == surface);
-    const ks::Vec3 c = bb.center(), e = 1.1 * bb.extent();
-    while (pts.size() < surface + outliers) {
-        pts.push_back(c + ks::Vec3((u(rng) - .5) * e.x(), (u(rng) - .5) * e.y(), (u(rng) - .5) * e.z()));
-        nn.push_back(ks::Vec3(g(rng), g(rng), g(rng)).normalized());
-    }
 }
 
 }  // namespace
@@ -423,91 +383,6 @@ TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range 
     // bunny has its genus, 0, as the whole set has without a cut (next test).
     CHECK(rep.genus == 0);
     CHECK(r.handles_removed == 1);
-}
-
-TEST_CASE("reconstruct_pu_graphcut: topological noise — the bunny00 seeds that had handles come out of genus 0") {
-    // bunny00 with 3 holes and 10 % outliers: seeds 3 and 6 came out of genus 2 and 1
-    // (one-tetrahedron handles, loops of 0.7, 1.7 and 3.4 median edges); cut, genus 0.
-    const std::string path = std::string(KINTSUGI_SHARED_DATA_DIR) + "/cgal/meshes/bunny00.off";
-    KINTSUGI_REQUIRE_DATA(path);
-    {
-        const ks::IndexedMesh ref = ks::read_mesh(path);
-        ks::BoundingBox bb;
-        for (const auto& v : ref.vertices) bb.extend(v);
-        for (const std::uint64_t seed : {3, 6}) {
-            CAPTURE(seed);
-            std::vector<ks::Vec3> pts, nn;
-            holey_noisy_sample(ref, bb, 110000, 90000, 10000, 3, 0.04, seed, pts, nn);
-            const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn));
-            REQUIRE(r.status == ks::Status::ok);
-            const auto rep = check_guarantee(r.mesh);
-            const auto d = ks::compare(r.mesh, ref, {.samples = 50000});
-            MESSAGE("bunny00 seed " << seed << ": genus " << rep.genus << ", handles removed " << r.handles_removed
-                                    << ", hausdorff " << d.relative(d.a_to_b).hausdorff);
-            CHECK(rep.components == 1);
-            CHECK(rep.genus == 0);
-            CHECK(r.handles_removed == (seed == 3 ? 2u : 1u));
-            CHECK(d.relative(d.a_to_b).mean <= 0.0005);
-            CHECK(d.relative(d.a_to_b).hausdorff <= 0.01);
-        }
-    }
-}
-
-TEST_CASE("reconstruct_pu_graphcut: topological noise — a genus-3 CAD part with 10 % outliers keeps genus 3") {
-    // A genus-3 part with sharp edges (a box pierced by three square holes), 20K points,
-    // 0.1 % noise, 10 % outliers: seeds 2 and 3 came out of genus 4 and 5; every seed
-    // now has genus 3, and the real holes (loops of 3.2 x the part's height) are kept.
-    for (const std::uint64_t seed : {1, 2, 3}) {
-        CAPTURE(seed);
-        std::vector<ks::Vec3> pts, nn;
-        kintsugi_test::HoledBlock::sample(20000, 0.001, 0.1, seed, pts, nn);
-        const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn));
-        REQUIRE(r.status == ks::Status::ok);
-        const auto rep = check_guarantee(r.mesh);
-        double mean = 0;
-        for (const auto& v : r.mesh.vertices) mean += std::abs(kintsugi_test::HoledBlock::sdf(v));
-        mean /= static_cast<double>(r.mesh.vertices.size()) * kintsugi_test::HoledBlock::diagonal();
-        MESSAGE("holed block seed " << seed << ": genus " << rep.genus << ", handles removed " << r.handles_removed
-                                    << ", mean |sdf| " << mean);
-        CHECK(rep.components == 1);
-        CHECK(rep.genus == 3);
-        CHECK(mean < 0.001);
-        if (seed == 3) {
-            // Without the cut the labelling's noise shows.
-            const auto raw = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn), {.max_handle_loop = 0});
-            REQUIRE(raw.status == ks::Status::ok);
-            CHECK(raw.handles_removed == 0);
-            CHECK(ks::topology_report(raw.mesh).genus == 3 + static_cast<long>(r.handles_removed));
-            CHECK(r.handles_removed == 2);
-        }
-    }
-}
-
-TEST_CASE("reconstruct_pu_graphcut: real mesh shipped — tests/data/bunny.off sampled with noise, 2 holes and 10 % outliers") {
-    // The accuracy check a plain clone runs (no ../shared): the same construction as the
-    // bunny00 acceptance test below, on the small watertight bunny shipped in tests/data.
-    const ks::IndexedMesh ref = ks::read_mesh(std::string(KINTSUGI_TEST_DATA_DIR) + "/bunny.off");
-    ks::BoundingBox bb;
-    for (const auto& v : ref.vertices) bb.extend(v);
-    std::vector<ks::Vec3> pts, nn;
-    holey_noisy_sample(ref, bb, 45000, 36000, 4000, 2, 0.03, 11, pts, nn);
-    const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nn));
-    REQUIRE(r.status == ks::Status::ok);
-    const auto rep = check_guarantee(r.mesh);
-    const auto d = ks::compare(r.mesh, ref, {.samples = 100000});
-    const auto ab = d.relative(d.a_to_b), ba = d.relative(d.b_to_a);
-    MESSAGE("bunny.off: components " << rep.components << " genus " << rep.genus << " result->truth mean " << ab.mean
-                                     << " hausdorff " << ab.hausdorff << " truth->result mean " << ba.mean
-                                     << " hausdorff " << ba.hausdorff);
-    // Measured: 1 component, genus 0; mean 0.049 % / 0.051 % of the diagonal
-    // (result->truth / truth->result), Hausdorff 1.44 % / 0.70 % (the shipped bunny is a
-    // coarse 1.8K-vertex mesh: its flat facets are sampled, the field rounds their creases).
-    CHECK(rep.components == 1);
-    CHECK(rep.genus == 0);
-    CHECK(ab.mean <= 0.0007);
-    CHECK(ba.mean <= 0.0007);
-    CHECK(ab.hausdorff <= 0.02);
-    CHECK(ba.hausdorff <= 0.01);
 }
 
 TEST_CASE("reconstruct_pu_graphcut: real scans — the 9 registered bunny range scans, all 327K points") {
