@@ -228,4 +228,13 @@ inline void holey_noisy_sample(const kintsugi::IndexedMesh& ref, const kintsugi:
     }
 }
 
+/// The same, in the bounding box of `ref`'s vertices.
+inline void holey_noisy_sample(const kintsugi::IndexedMesh& ref, std::size_t draw, std::size_t surface,
+                               std::size_t outliers, int holes, double hole_radius, std::uint64_t seed,
+                               std::vector<kintsugi::Vec3>& pts, std::vector<kintsugi::Vec3>& nn) {
+    kintsugi::BoundingBox bb;
+    for (const auto& v : ref.vertices) bb.extend(v);
+    holey_noisy_sample(ref, bb, draw, surface, outliers, holes, hole_radius, seed, pts, nn);
+}
+
 }  // namespace kintsugi_test
