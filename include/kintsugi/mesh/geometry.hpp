@@ -177,6 +177,21 @@ inline Scalar mean_edge_length(const std::vector<Vec3>& V, const MeshTopology& t
         [](Sum x, Sum y) { return Sum{x.first + y.first, x.second + y.second}; });
     return sum.second ? sum.first / static_cast<Scalar>(sum.second) : Scalar(0);
 }
+
+/// Length of every edge of `topo` over positions `V`, in the order of topo.edges().
+inline std::vector<Scalar> edge_lengths(const std::vector<Vec3>& V, const MeshTopology& topo) {
+    const auto& E = topo.edges();
+    std::vector<Scalar> len(E.size());
+    for (std::size_t e = 0; e < E.size(); ++e) len[e] = (V[E[e][0]] - V[E[e][1]]).norm();
+    return len;
+}
+
+/// The upper median of `v` (element n/2 in sorted order). @pre v not empty.
+inline Scalar upper_median(std::vector<Scalar> v) {
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
 }  // namespace detail
 
 /// @brief Mean length of the mesh's unique undirected edges (each counted once), in

@@ -23,6 +23,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/holes.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/metrics/topology_report.hpp>
@@ -31,6 +32,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <queue>
 #include <string>
 #include <utility>
@@ -278,6 +280,42 @@ private:
     std::vector<Index> settled_, touched_;
 };
 
+/// Grows a set of faces (flags `in`, ids `list`) until no vertex starts two of its
+/// boundary half-edges (a face's edge whose other face is outside the set): every face
+/// at such a pinched vertex joins, except those `excluded(f)` keeps out. Returns the
+/// boundary half-edges (a, b) along their faces, sorted; nothing when still pinched
+/// after max_rounds rounds of growth.
+template <class Excluded>
+std::optional<std::vector<std::pair<Index, Index>>> close_pinches(const MeshTopology& topo,
+                                                                  std::vector<std::uint8_t>& in,
+                                                                  std::vector<Index>& list, Excluded excluded,
+                                                                  std::size_t max_rounds) {
+    const auto& faces = topo.faces();
+    std::vector<std::pair<Index, Index>> rim;
+    for (std::size_t round = 0;; ++round) {
+        rim.clear();
+        for (const Index f : list)
+            for (int k = 0; k < 3; ++k) {
+                const auto ef = topo.edge_faces(topo.face_edges(f)[k]);
+                const Index g = ef[0] == f ? ef[1] : ef[0];
+                if (!in[g]) rim.emplace_back(faces[f][k], faces[f][(k + 1) % 3]);
+            }
+        std::sort(rim.begin(), rim.end());
+        bool grown = false;
+        for (std::size_t i = 1; i < rim.size(); ++i) {
+            if (rim[i].first != rim[i - 1].first) continue;
+            for (const Index f : topo.vertex_faces(rim[i].first))
+                if (!in[f] && !excluded(f)) {
+                    in[f] = 1;
+                    list.push_back(f);
+                    grown = true;
+                }
+        }
+        if (!grown) return rim;
+        if (round + 1 >= max_rounds) return std::nullopt;
+    }
+}
+
 /// The faces to remove around a loop (every face at a loop vertex, grown over pinched
 /// vertices) and the two boundary loops they leave; false when they do not leave two
 /// simple loops (the loop is then skipped).
@@ -285,36 +323,17 @@ inline bool handle_band(const MeshTopology& topo, const std::vector<Index>& loop
                         std::vector<Index>& band, std::vector<std::vector<Index>>& rims) {
     band.clear();
     rims.clear();
-    auto add_star = [&](Index v) {
+    for (const Index v : loop)
         for (const Index f : topo.vertex_faces(v))
             if (!in_band[f]) {
                 in_band[f] = 1;
                 band.push_back(f);
             }
-    };
-    for (const Index v : loop) add_star(v);
-    const auto& faces = topo.faces();
     // Boundary half-edges a -> b of the removed region: a band face's edge whose other
     // face stays; the remaining face runs b -> a, the rim runs a -> b.
-    std::vector<std::pair<Index, Index>> rim;
-    for (int guard = 0; guard < 64; ++guard) {
-        rim.clear();
-        for (const Index f : band)
-            for (int k = 0; k < 3; ++k) {
-                const Index e = topo.face_edges(f)[k];
-                const auto ef = topo.edge_faces(e);
-                const Index g = ef[0] == f ? ef[1] : ef[0];
-                if (!in_band[g]) rim.emplace_back(faces[f][k], faces[f][(k + 1) % 3]);
-            }
-        std::sort(rim.begin(), rim.end());
-        // A vertex starting two rim half-edges is pinched: take its faces too.
-        std::vector<Index> pinched;
-        for (std::size_t i = 1; i < rim.size(); ++i)
-            if (rim[i].first == rim[i - 1].first) pinched.push_back(rim[i].first);
-        if (pinched.empty()) break;
-        for (const Index v : pinched) add_star(v);
-        if (guard == 63) return false;
-    }
+    const auto grown = close_pinches(topo, in_band, band, [](Index) { return false; }, 64);
+    if (!grown) return false;
+    const auto& rim = *grown;
     // Walk the rims.
     std::vector<std::uint8_t> used(rim.size(), 0);
     for (std::size_t i = 0; i < rim.size(); ++i) {
@@ -347,9 +366,8 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
         while (res.genus_after > 0 && res.handles_removed < params.max_handles) {
             const MeshTopology topo(pos.size(), faces);
             const std::vector<std::uint64_t> word = handle_cocycle_words(topo);
-            const std::size_t nv = pos.size(), ne = topo.num_edges();
-            std::vector<Scalar> len(ne);
-            for (Index e = 0; e < ne; ++e) len[e] = (pos[topo.edges()[e][0]] - pos[topo.edges()[e][1]]).norm();
+            const std::size_t nv = pos.size();
+            const std::vector<Scalar> len = edge_lengths(pos, topo);
             BallSearch ball(topo, len, word);
             // 1. Where a loop of length <= L can be: nets of seeds d apart (d = L, L/4,
             // L/16, ... down to one to four median edges), each over the vertices the
@@ -359,10 +377,7 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
             // the fundamental loop of one of its non-tree edges, which is no longer than
             // the walk. A seed whose shortest non-separating fundamental loop is longer
             // than L + 2d therefore has no such loop near it.
-            std::vector<Scalar> sorted_len = len;
-            std::nth_element(sorted_len.begin(), sorted_len.begin() + static_cast<std::ptrdiff_t>(ne / 2),
-                             sorted_len.end());
-            const Scalar h = sorted_len[ne / 2];
+            const Scalar h = upper_median(len);
             std::vector<Index> starts;
             std::vector<std::uint8_t> candidate(nv, 1), covered(nv, 0), next(nv, 0);
             for (Scalar d = L;; d /= 4) {
@@ -414,7 +429,7 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
             // 3. Shortest first: loops of independent classes whose bands do not touch.
             std::vector<std::uint8_t> in_band(faces.size(), 0), band_vertex(nv, 0);
             std::vector<std::uint64_t> basis;  // XOR basis of the accepted classes
-            std::vector<Index> band, removed;
+            std::vector<Index> band;
             std::vector<std::vector<Index>> rims, holes;
             std::vector<Scalar> accepted;
             // A loop whose class depends on the accepted ones separates once they are cut;
@@ -436,10 +451,8 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
                     deferred = true;
                     continue;
                 }
-                for (const Index f : band) {
-                    removed.push_back(f);
+                for (const Index f : band)
                     for (const Index v : faces[f]) band_vertex[v] = 1;
-                }
                 for (auto& r : rims) holes.push_back(std::move(r));
                 basis.push_back(c);
                 std::sort(basis.rbegin(), basis.rend());
@@ -457,7 +470,7 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
             std::vector<Face> local_faces;
             {
                 std::vector<std::uint8_t> near(nv, 0), taken(faces.size(), 0);
-                std::vector<Index> ring;
+                std::vector<Index> ring, piece;
                 for (const auto& r : holes)
                     for (const Index v : r)
                         if (!near[v]) {
@@ -471,7 +484,7 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
                         for (const Index f : topo.vertex_faces(v)) {
                             if (in_band[f] || taken[f]) continue;
                             taken[f] = 1;
-                            local_faces.push_back(faces[f]);
+                            piece.push_back(f);
                             for (const Index w : faces[f])
                                 if (!near[w]) {
                                     near[w] = 1;
@@ -481,28 +494,12 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
                     ring.swap(next);
                 }
                 // A vertex whose taken faces form two fans would make the piece
-                // non-manifold: take all its faces, until none is left.
-                for (bool pinched = true; pinched;) {
-                    pinched = false;
-                    std::vector<Index> starts_at;
-                    for (const Face& f : local_faces)
-                        for (int k = 0; k < 3; ++k) {
-                            const auto e = topo.find_edge(f[k], f[(k + 1) % 3]);
-                            const auto ef = topo.edge_faces(*e);
-                            if (!taken[ef[0]] || !taken[ef[1]]) starts_at.push_back(f[k]);
-                        }
-                    std::sort(starts_at.begin(), starts_at.end());
-                    for (std::size_t i = 1; i < starts_at.size(); ++i) {
-                        if (starts_at[i] != starts_at[i - 1]) continue;
-                        for (const Index f : topo.vertex_faces(starts_at[i]))
-                            if (!in_band[f] && !taken[f]) {
-                                taken[f] = 1;
-                                local_faces.push_back(faces[f]);
-                                pinched = true;
-                            }
-                    }
-                }
-                for (Face& f : local_faces)
+                // non-manifold: take all its faces (the bands stay out).
+                (void)close_pinches(topo, taken, piece, [&](Index f) { return in_band[f] != 0; },
+                                    std::numeric_limits<std::size_t>::max());
+                local_faces.reserve(piece.size());
+                for (const Index id : piece) {
+                    Face f = faces[id];
                     for (Index& v : f) {
                         if (local_of[v] == invalid_index) {
                             local_of[v] = global_of.size();
@@ -510,6 +507,8 @@ inline HandleResult remove_small_handles_indexed(std::vector<Vec3>& pos, std::ve
                         }
                         v = local_of[v];
                     }
+                    local_faces.push_back(f);
+                }
             }
             std::vector<Vec3> local_pos(global_of.size());
             for (Index i = 0; i < global_of.size(); ++i) local_pos[i] = pos[global_of[i]];

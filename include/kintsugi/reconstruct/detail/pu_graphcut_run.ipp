@@ -197,12 +197,8 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         // median edge goes around (kintsugi::remove_small_handles).
         progress.stage("handles", smooth_end, 1.0);
         if (params.max_handle_loop > 0 && !topo.edges().empty()) {
-            std::vector<Scalar> len(topo.num_edges());
-            for (Index e = 0; e < len.size(); ++e)
-                len[e] = (mt.mesh.vertices[topo.edges()[e][0]] - mt.mesh.vertices[topo.edges()[e][1]]).norm();
-            std::nth_element(len.begin(), len.begin() + static_cast<std::ptrdiff_t>(len.size() / 2), len.end());
             HandleParams hp;
-            hp.max_loop_length = params.max_handle_loop * len[len.size() / 2];
+            hp.max_loop_length = params.max_handle_loop * upper_median(edge_lengths(mt.mesh.vertices, topo));
             hp.control = sub_control(control, smooth_end, 1.0);
             // The mesh is closed and manifold by construction; should smoothing ever
             // flatten a face to zero area, the cut is skipped rather than the run failed.
