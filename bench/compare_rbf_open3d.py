@@ -54,12 +54,12 @@ def mean_distance(points, mesh):
     return float(d.mean())
 
 
-def run_kintsugi(binary, pcd, workdir):
+def run_kintsugi(binary, pcd, workdir, method):
     xyz = os.path.join(workdir, "in.xyz")
-    out = os.path.join(workdir, "rbf.ply")
+    out = os.path.join(workdir, method + ".ply")
     np.savetxt(xyz, np.hstack([np.asarray(pcd.points), np.asarray(pcd.normals)]), fmt="%.9g")
     c0, t0 = children_cpu(), time.perf_counter()
-    res = subprocess.run([binary, "reconstruct", xyz, out, "--method", "rbf", "--json", "-q"],
+    res = subprocess.run([binary, "reconstruct", xyz, out, "--method", method, "--json", "-q"],
                          check=True, capture_output=True, text=True)
     wall, cpu = time.perf_counter() - t0, children_cpu() - c0
     j = json.loads(res.stdout)
@@ -103,6 +103,7 @@ def main():
     ap.add_argument("binary")
     ap.add_argument("--points", type=int, default=200000)
     ap.add_argument("--shapes", default="fertility,armadillo,gargoyle,dc", help="comma-separated subset to run")
+    ap.add_argument("--method", default="rbf", choices=("rbf", "pu-graphcut"), help="kintsugi's method")
     a = ap.parse_args()
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     with open("/proc/loadavg") as f:
@@ -120,14 +121,16 @@ def main():
                   "dc": lambda: (o3d.io.read_point_cloud(os.path.join(DATA, "berger_srb", "dc.ply")), None),
                   "sharpsphere": lambda: sampled("guided_denoising", "SharpSphere0.3", "Original.obj"),
                   "block": lambda: sampled("guided_denoising", "Block0.4", "Original.obj"),
-                  "twelve": lambda: sampled("guided_denoising", "Twelve0.5Impulsive", "Original.obj")}
+                  "twelve": lambda: sampled("guided_denoising", "Twelve0.5Impulsive", "Original.obj"),
+                  "bunny00": lambda: sampled("cgal", "meshes", "bunny00.off"),
+                  "eight": lambda: sampled("cgal", "meshes", "eight.off")}
         for name in a.shapes.split(","):
             pcd, ref = shapes[name]()
             diag = np.linalg.norm(pcd.get_max_bound() - pcd.get_min_bound())
             ref_pts = np.asarray(ref.sample_points_uniformly(200000).points) if ref else np.asarray(pcd.points)
-            for method in ("kintsugi rbf", "Open3D Poisson d10"):
+            for method in ("kintsugi " + a.method, "Open3D Poisson d10"):
                 if method.startswith("kintsugi"):
-                    mesh, wall, cpu, j = run_kintsugi(a.binary, pcd, tmp)
+                    mesh, wall, cpu, j = run_kintsugi(a.binary, pcd, tmp, a.method)
                     note = "closed" if j["closed"] else "open"
                 else:
                     got, err = run_open3d(pcd, tmp)

@@ -87,6 +87,13 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                    "Cut handles/tunnels a loop of at most this many median mesh edges goes around (0 keeps all)")
         ->capture_default_str()
         ->check(kcli::real(0.0, 1e6));
+    cmd.add_option("--refine-spacing", p.refine_spacing,
+                   "Refine the surface to this many times the local sample spacing and move it onto the data (0: off)")
+        ->capture_default_str()
+        ->check(kcli::real(0.0, 1e6));
+    cmd.add_option("--refine-neighbors", p.refine_neighbors, "Neighbours of the MLS fit of the refinement")
+        ->capture_default_str()
+        ->check(kcli::count(4, 100000));
     cmd.add_option("--labeling", o->labeling, "graphcut, or sign (the PU field's sign, for comparison)")
         ->capture_default_str()
         ->check(CLI::IsMember({"graphcut", "sign"}));
@@ -149,6 +156,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["triangulation_weight_scale"] = p.triangulation_weight_scale;
         j["parameters"]["smoothing_iterations"] = p.smoothing_iterations;
         j["parameters"]["max_handle_loop"] = p.max_handle_loop;
+        j["parameters"]["refine_spacing"] = p.refine_spacing;
+        j["parameters"]["refine_neighbors"] = p.refine_neighbors;
         j["parameters"]["labeling"] = o->labeling;
         j["parameters"]["inward_normals"] = o->inward;
         j["parameters"]["seed"] = ctx.common.seed;
@@ -169,6 +178,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["far_points"] = r.far_points;
         j["parts"] = r.parts;
         j["handles_removed"] = r.handles_removed;
+        j["refined_vertices"] = r.refined_vertices;
         j["vertices"] = rep.vertices;
         j["faces"] = rep.faces;
         j["components"] = rep.components;

@@ -86,7 +86,7 @@ TEST_CASE("reconstruct_pu_graphcut: sphere with 10 % outliers -> one closed genu
     std::vector<std::string> stages;
     for (const auto& t : r.timings) stages.push_back(t.stage);
     CHECK(stages == std::vector<std::string>{"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
-                                             "marching_tetrahedra", "smoothing", "handles"});
+                                             "marching_tetrahedra", "smoothing", "handles", "refine"});
     // The plain sign of the PU field (the paper's "PU only") is measurably worse.
     const Outcome sign = run_shape(sphere, ks::Labeling::sign);
     MESSAGE("sphere sign: components " << sign.components << " mean " << sign.mean);
@@ -340,7 +340,7 @@ TEST_CASE("reconstruct_pu_graphcut: cancellation at every stage") {
     std::vector<ks::Vec3> pts, nrm;
     kintsugi_test::sample_shape(Shape{0}, 3000, 0.001, 0.05, 2, pts, nrm);
     for (const std::string stage : {"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
-                                    "marching_tetrahedra", "smoothing", "handles"}) {
+                                    "marching_tetrahedra", "smoothing", "handles", "refine"}) {
         CAPTURE(stage);
         bool seen = false;
         ks::PUGraphcutParams p{.max_level = 6};
@@ -556,7 +556,7 @@ TEST_CASE("reconstruct_pu_graphcut: far outliers are left out; far-apart objects
     std::vector<std::string> stages;
     for (const auto& t : two.timings) stages.push_back(t.stage);
     CHECK(stages == std::vector<std::string>{"pu_octree", "pu_cover", "pu_index", "triangulation", "graph_cut",
-                                             "marching_tetrahedra", "smoothing", "handles"});
+                                             "marching_tetrahedra", "smoothing", "handles", "refine"});
     // One box for everything (the paper's rule, part_gap_fraction = 0): each sphere fits
     // in one cell of the cube, no support is labelled inside, and the empty surface is an
     // error naming the reason and the fix, not an exit with 0 vertices.

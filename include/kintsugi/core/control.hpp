@@ -88,6 +88,9 @@ public:
         if (control_.stop.stop_requested()) throw cancelled_exception{};
     }
 
+    /// The run's stop token, for helpers that poll it themselves.
+    [[nodiscard]] const std::stop_token& stop() const { return control_.stop; }
+
     /// Ends the current stage and returns all timings so far.
     std::vector<StageTiming> finish() {
         finish_stage();

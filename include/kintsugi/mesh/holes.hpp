@@ -22,6 +22,7 @@
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/fair.hpp>
 #include <kintsugi/mesh/halfedge_mesh.hpp>
+#include <kintsugi/mesh/refine.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/mesh/vertex_subset.hpp>
 
@@ -366,18 +367,6 @@ inline bool within_reach(const BoundingBox& reach, const Vec3& q) {
     return q.allFinite() && !(q.array() < reach.min.array()).any() && !(q.array() > reach.max.array()).any();
 }
 
-/// Whether the edge of h is locally Delaunay: the angles opposite it sum to at most pi.
-inline bool is_locally_delaunay(const HalfedgeMesh& m, Index h) {
-    const Index g = m.twin(h);
-    if (g == HalfedgeMesh::invalid) return true;
-    auto angle = [&](Index e) {
-        const Vec3& o = m.position(m.opposite(e));
-        const Vec3 u = m.position(m.source(e)) - o, v = m.position(m.target(e)) - o;
-        return std::atan2(u.cross(v).norm(), u.dot(v));
-    };
-    return angle(h) + angle(g) <= Scalar(3.14159265358979323846) + Scalar(1e-12);
-}
-
 /// fill_holes on the working copy (positions `pos`, faces `faces`, the mesh's own):
 /// checks and orients the loops, triangulates, refines and fairs them, and gives the
 /// patch in new_pos and new_faces (indices past the existing vertices). One non-template
@@ -468,36 +457,15 @@ inline FillResult fill_holes_indexed(const std::vector<Vec3>& pos, std::vector<F
             return g != HalfedgeMesh::invalid && patch[HalfedgeMesh::face(h)] != HalfedgeMesh::invalid &&
                    patch[HalfedgeMesh::face(g)] != HalfedgeMesh::invalid;
         };
-        auto flip_pass = [&]() {
-            for (std::size_t sweep = 0; sweep < 100; ++sweep) {
-                bool any = false;
-                for (Index h = 3 * nf0; h < hm.halfedge_capacity(); ++h) {
-                    const Index g = hm.twin(h);
-                    if (g == HalfedgeMesh::invalid || g < h || !interior_patch_edge(h)) continue;
-                    if (!is_locally_delaunay(hm, h) && hm.flip(h)) any = true;
-                }
-                progress.check();
-                if (!any) break;
-            }
-        };
-        flip_pass();
-        for (std::size_t round = 0; round < params.max_rounds; ++round) {
-            progress.update(static_cast<double>(round) / static_cast<double>(params.max_rounds));
-            bool split_any = false;
-            const Index end = hm.halfedge_capacity();
-            for (Index h = 3 * nf0; h < end; ++h) {
-                const Index g = hm.twin(h);
-                if (g == HalfedgeMesh::invalid || g < h || !interior_patch_edge(h)) continue;
-                const Scalar len = (hm.position(hm.target(h)) - hm.position(hm.source(h))).norm();
-                if (len <= params.split_factor * target[patch[HalfedgeMesh::face(h)]]) continue;
+        detail::split_and_flip(
+            hm, 3 * static_cast<Index>(nf0), interior_patch_edge,
+            [&](Index h, Scalar len) { return len > params.split_factor * target[patch[HalfedgeMesh::face(h)]]; },
+            [&](Index h) {
                 const Index hole = patch[HalfedgeMesh::face(h)];
                 hm.split(h, 0.5);
                 patch.resize(hm.face_capacity(), hole);
-                split_any = true;
-            }
-            if (!split_any) break;
-            flip_pass();
-        }
+            },
+            params.max_rounds, progress);
         // 3. Fair the new vertices.
         progress.stage("fair", 0.7, 0.95);
         // Each hole's reach: the box of its loop grown by the box's diagonal.

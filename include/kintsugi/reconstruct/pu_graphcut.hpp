@@ -128,6 +128,15 @@ struct PUGraphcutParams {
     /// labelling cannot resolve. Measured: the spurious handles' loops 0.1-6.8 h, real
     /// handles' at least 16 h (fertility, 50K points, 10 % outliers).
     Scalar max_handle_loop = 10;
+    /// Detail at the samples' resolution: the cut's surface is refined until its edges
+    /// are at most about this many times the local spacing of the input points near it,
+    /// and each vertex with data near it is moved onto the moving-least-squares surface
+    /// of those points (step 8; the topology is the labelling's). >= 0, 0 keeps the
+    /// surface of steps 6-7 (vertices on the triangulation's edges only); default 1.5.
+    Scalar refine_spacing = 1.5;
+    /// Neighbours of the MLS fit of step 8 (kintsugi::PointSetSurfaceParams::k): more
+    /// average more noise and flatten more detail. >= 4; default 20.
+    std::size_t refine_neighbors = 20;
 };
 
 /// Result of reconstruct_pu_graphcut.
@@ -153,7 +162,7 @@ struct PUGraphcutResult {
     std::size_t removed_regions = 0;     ///< small inside regions / cavities relabelled
     std::size_t filled_vertices = 0;     ///< mesh vertices placed by the thin-plate fill
     /// Per stage, in order: pu_octree, pu_cover, pu_index, triangulation, graph_cut,
-    /// marching_tetrahedra, smoothing, handles (summed over the parts).
+    /// marching_tetrahedra, smoothing, handles, refine (summed over the parts).
     std::vector<StageTiming> timings;
     /// Input points left out of the surface: in separated parts (see
     /// PUGraphcutParams::part_gap_fraction) too small to be an object, spanning no
@@ -165,6 +174,8 @@ struct PUGraphcutResult {
     /// Handles and tunnels removed as topological noise (see
     /// PUGraphcutParams::max_handle_loop), summed over the parts.
     std::size_t handles_removed = 0;
+    /// Mesh vertices moved onto the MLS surface of the data by step 8 (refine_spacing).
+    std::size_t refined_vertices = 0;
 };
 
 namespace detail {
@@ -198,6 +209,12 @@ inline void pu_graphcut_validate(const std::vector<Vec3>& pts, const std::vector
     if (!(p.max_handle_loop >= 0) || !std::isfinite(p.max_handle_loop))
         throw invalid_input(fn + "max_handle_loop = " + std::to_string(p.max_handle_loop) +
                             " must be finite and >= 0 (0 keeps every handle; the default is 10)");
+    if (!(p.refine_spacing >= 0) || !std::isfinite(p.refine_spacing))
+        throw invalid_input(fn + "refine_spacing = " + std::to_string(p.refine_spacing) +
+                            " must be finite and >= 0 (0 keeps the triangulation's resolution; the default is 1.5)");
+    if (p.refine_spacing > 0 && p.refine_neighbors < 4)
+        throw invalid_input(fn + "refine_neighbors = " + std::to_string(p.refine_neighbors) +
+                            " is too few for a surface fit; use at least 4 (the default is 20)");
     // The checks of PUField::build that do not depend on the points' spread (that one
     // runs per part, in the part's frame: pu_graphcut_validate_part).
     pu_validate_input(pts, nrm, p.max_level, p.epsilon, fn, /*tiny_normals=*/true);

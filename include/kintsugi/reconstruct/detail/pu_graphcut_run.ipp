@@ -18,6 +18,14 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
     res.points = pts.size();
     // Fractions of the overall progress per stage (measured on the 100K bunny).
     constexpr double pu_end = 0.35, tri_end = 0.7, cut_end = 0.85, mt_end = 0.92, smooth_end = 0.96;
+    constexpr double handles_end = 0.97;
+    // Step 8 needs the points and outward normals after the field has taken them.
+    std::vector<Vec3> data_pts, data_nrm;
+    if (params.refine_spacing > 0) {
+        data_pts = pts;
+        data_nrm = nrm;
+        for (Vec3& n : data_nrm) n = params.normals == NormalConvention::inward ? Vec3(-n) : n;
+    }
 
     // Steps 1-3: the PU field.
     PUFieldResult pu = PUField::build_from(std::move(pts), std::move(nrm),
@@ -195,11 +203,11 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         }
         // Topological noise: handles and tunnels a loop of at most max_handle_loop x the
         // median edge goes around (kintsugi::remove_small_handles).
-        progress.stage("handles", smooth_end, 1.0);
+        progress.stage("handles", smooth_end, handles_end);
         if (params.max_handle_loop > 0 && !topo.edges().empty()) {
             HandleParams hp;
             hp.max_loop_length = params.max_handle_loop * upper_median(edge_lengths(mt.mesh.vertices, topo));
-            hp.control = sub_control(control, smooth_end, 1.0);
+            hp.control = sub_control(control, smooth_end, handles_end);
             // The mesh is closed and manifold by construction; should smoothing ever
             // flatten a face to zero area, the cut is skipped rather than the run failed.
             const TopologyReport rep = topology_report(mt.mesh.vertices, mt.mesh.faces);
@@ -210,6 +218,14 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
                 if (hr.status == Status::cancelled) throw cancelled_exception{};
                 res.handles_removed = hr.handles_removed;
             }
+        }
+        // Step 8 (ours): detail at the samples' resolution (refine_spacing).
+        progress.stage("refine", handles_end, 1.0);
+        if (params.refine_spacing > 0 && params.refine_neighbors <= data_pts.size()) {
+            const RefineCounts rc = refine_to_samples(mt.mesh, tfield, data_pts, data_nrm, params.refine_spacing,
+                                                      params.refine_neighbors, field.epsilon(), sup, trusted,
+                                                      params.fill_radius_fraction, progress);
+            res.refined_vertices = rc.projected;
         }
         res.mesh = std::move(mt.mesh);
         auto t = progress.finish();
@@ -310,7 +326,8 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
         for (std::size_t R::*count :
              {&R::octree_cells, &R::supports, &R::hidden_supports, &R::outer_vertices, &R::tetrahedra,
               &R::graph_nodes, &R::graph_edges, &R::inside_vertices, &R::sign_disagreements, &R::same_sign_vertices,
-              &R::smoothed_vertices, &R::removed_regions, &R::filled_vertices, &R::handles_removed})
+              &R::smoothed_vertices, &R::removed_regions, &R::filled_vertices, &R::handles_removed,
+              &R::refined_vertices})
             res.*count += r.*count;
         res.cut_value += r.cut_value;
         for (const StageTiming& t : r.timings) {

@@ -15,10 +15,14 @@
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/stages.hpp>
 #include <kintsugi/core/types.hpp>
+#include <kintsugi/adapters/std_vector.hpp>
 #include <kintsugi/field/edge_root.hpp>
+#include <kintsugi/field/point_set_surface.hpp>
 #include <kintsugi/graph/st_cut.hpp>
 #include <kintsugi/mesh/fair.hpp>
+#include <kintsugi/mesh/halfedge_mesh.hpp>
 #include <kintsugi/mesh/marching_tetrahedra.hpp>
+#include <kintsugi/mesh/refine.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
@@ -278,6 +282,151 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
         }, 256);
         b0 = b1;
     }
+}
+
+/// Counts of the refinement (step 8).
+struct RefineCounts {
+    std::size_t inliers = 0;    ///< input points within the band of the field's zero set
+    std::size_t splits = 0;     ///< edge splits
+    std::size_t projected = 0;  ///< mesh vertices moved onto the MLS surface of the inliers
+};
+
+/// @brief Step 8 (ours): the cut's surface, whose vertices lie on the edges of the
+/// support triangulation (few and long where the surface is smooth), refined to the
+/// samples' spacing and moved onto the data. The labelling keeps the topology: edges
+/// are only split and flipped (detail::split_and_flip), never collapsed.
+///
+/// 1. Inliers: the input points within `band` of the zero set of `field` (|f| / |∇f|)
+///    whose normal agrees with ∇f (the outliers' random positions and normals rarely
+///    pass both).
+/// 2. Spacing s(q) of each inlier: the radius of its 8 nearest inliers x sqrt(π/8) (the
+///    mean spacing of 8 points on a disk of that radius); s at a mesh vertex is that of
+///    its nearest inlier, interpolated along split edges.
+/// 3. Every edge longer than 4/3 x spacing x s is split at its midpoint, then edges are
+///    flipped to Delaunay, until no edge is too long.
+/// 4. Each vertex supported as in step 7 (within fill_fraction x r_i of the centre of a
+///    trusted support, `trusted`; 0: every vertex) and with an inlier within 2 s is projected
+///    onto the MLS surface (APSS, kintsugi::PointSetSurface, k neighbours) of the
+///    inliers; a projection that moves it by more than `band` (a fit that failed: the
+///    data surface is within the field's tolerance of the zero set) is refused.
+/// 5. The other vertices (hole fills, refused fits) take thin-plate positions between
+///    the projected ones (biharmonic_fill).
+/// @param outward_normals the input normals, pointing outward
+/// @return the counts; the mesh is unchanged when fewer than 2 k points are inliers
+inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, const std::vector<Vec3>& pts,
+                                      const std::vector<Vec3>& outward_normals, Scalar spacing, std::size_t k,
+                                      Scalar band, const std::vector<PUSupport>& sup,
+                                      const std::vector<Index>& trusted, Scalar fill_fraction, Progress& progress) {
+    RefineCounts out;
+    // 1. Inliers.
+    std::vector<std::uint8_t> near(pts.size(), 0);
+    parallel_for(0, pts.size(), [&](std::size_t i) {
+        Vec3 g;
+        const Scalar v = field.value_and_gradient(pts[i], g);
+        const Scalar gn = g.norm();
+        near[i] = std::isfinite(v) && gn > 0 && std::abs(v) <= band * gn && g.dot(outward_normals[i]) > 0;
+    }, 1024);
+    std::vector<Vec3> ip, in;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        if (near[i]) {
+            ip.push_back(pts[i]);
+            in.push_back(outward_normals[i]);
+        }
+    out.inliers = ip.size();
+    if (ip.size() < std::max<std::size_t>(2 * k, 16) || mesh.faces.empty()) return out;
+    progress.check();
+    const PointSetSurface mls(with_normals(ip, in), PointSetSurfaceParams{.k = k});
+    const KdTree& tree = mls.tree();
+    // 2. Spacing.
+    constexpr std::size_t ring = 8;
+    const Scalar disk = std::sqrt(Scalar(3.14159265358979323846) / ring);
+    std::vector<Scalar> sq(ip.size());
+    parallel_for(0, ip.size(), [&](std::size_t i) {
+        thread_local std::vector<Neighbor> nb;
+        tree.knn(ip[i], ring + 1, nb);
+        sq[i] = std::sqrt(nb.back().squared_distance) * disk;
+    }, 1024);
+    progress.update(0.1);
+    // 3. Split and flip.
+    HalfedgeMesh hm = HalfedgeMesh::from_faces(mesh.vertices, mesh.faces);
+    const std::size_t ch = hm.add_scalar("spacing", 0);
+    {
+        std::vector<Scalar> s0(hm.vertex_capacity());
+        parallel_for(0, s0.size(), [&](std::size_t v) {
+            thread_local std::vector<Neighbor> nb;
+            tree.knn(hm.position(static_cast<Index>(v)), 1, nb);
+            s0[v] = sq[nb[0].index];
+        }, 1024);
+        for (Index v = 0; v < s0.size(); ++v) hm.scalar(ch, v) = s0[v];
+    }
+    const Scalar limit = Scalar(4) / 3 * spacing;
+    out.splits = split_and_flip(
+        hm, 0, [](Index) { return true; },
+        [&](Index h, Scalar len) {
+            return len > limit * std::min(hm.scalar(ch, hm.source(h)), hm.scalar(ch, hm.target(h)));
+        },
+        [&](Index h) { hm.split(h, 0.5); }, 30, progress, 0.1, 0.5);
+    // 4. Projection.
+    std::vector<Vec3> x(hm.vertex_capacity());
+    for (Index v = 0; v < x.size(); ++v) x[v] = hm.position(v);
+    std::vector<std::uint8_t> moved(x.size(), 0), hole(x.size(), 0);
+    if (fill_fraction > 0) mark_unsupported(x, sup, trusted, fill_fraction, hole, progress.stop());
+    std::vector<Vec3> nx(x.size(), Vec3::Zero());  // area-weighted vertex normals
+    for (Index f = 0; f < hm.face_capacity(); ++f) {
+        if (hm.is_removed_face(f)) continue;
+        const Index a = hm.face_vertex(f, 0), b = hm.face_vertex(f, 1), c = hm.face_vertex(f, 2);
+        const Vec3 n = (x[b] - x[a]).cross(x[c] - x[a]);
+        nx[a] += n;
+        nx[b] += n;
+        nx[c] += n;
+    }
+    const Scalar reach = 4 * band;
+    const std::size_t blocks = std::clamp<std::size_t>(x.size() / 4096, 1, 40);
+    for (std::size_t b = 0; b < blocks; ++b) {
+        progress.update(0.5 + 0.5 * static_cast<double>(b) / static_cast<double>(blocks));
+        parallel_for(x.size() * b / blocks, x.size() * (b + 1) / blocks, [&](std::size_t v) {
+            if (hole[v]) return;
+            // Newton steps onto the zero set of the field first (the mesh of steps 6-7
+            // can lie off it: same-sign and hole-fill vertices), at most `reach` in all.
+            Vec3 y = x[v];
+            for (int it = 0; it < 4; ++it) {
+                Vec3 g;
+                const Scalar f = field.value_and_gradient(y, g);
+                const Scalar g2 = g.squaredNorm();
+                if (!std::isfinite(f) || !(g2 > 0)) break;
+                const Vec3 next = y - f / g2 * g;
+                if ((next - x[v]).squaredNorm() > reach * reach) break;
+                y = next;
+            }
+            thread_local std::vector<Neighbor> nb;
+            tree.knn(y, 1, nb);
+            const Scalar s = sq[nb[0].index];
+            if (nb[0].squared_distance > 4 * s * s) return;  // no data here: a hole's fill
+            const SurfaceProjection p = mls.project_unchecked(y);
+            if (!p.point.allFinite() || (p.point - y).squaredNorm() > band * band || p.normal.dot(nx[v]) <= 0)
+                return;
+            x[v] = p.point;
+            moved[v] = 1;
+        }, 64);
+        progress.check();
+    }
+    // The vertices left where they were (hole fills and refused fits) lie on the chords
+    // of the coarse surface: they take the thin-plate positions between the projected
+    // ones (as the fill of step 7 did at the coarse resolution).
+    std::vector<Face> faces;
+    faces.reserve(hm.num_faces());
+    for (Index f = 0; f < hm.face_capacity(); ++f)
+        if (!hm.is_removed_face(f)) faces.push_back({hm.face_vertex(f, 0), hm.face_vertex(f, 1), hm.face_vertex(f, 2)});
+    std::vector<std::uint8_t> rest(x.size(), 0);
+    for (Index v = 0; v < x.size(); ++v) {
+        rest[v] = !moved[v] && !hm.is_removed_vertex(v);
+        out.projected += moved[v];
+    }
+    progress.check();
+    if (out.projected > 0 && out.projected < x.size()) (void)biharmonic_fill(x, MeshTopology(x.size(), faces), rest);
+    for (Index v = 0; v < x.size(); ++v) hm.position(v) = x[v];
+    hm.to_mesh(mesh);
+    return out;
 }
 
 }  // namespace kintsugi::detail
