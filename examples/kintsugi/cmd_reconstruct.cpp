@@ -99,7 +99,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ->check(CLI::IsMember({"graphcut", "sign"}));
     cmd.add_flag("--inward-normals", o->inward, "Input normals point into the object (the paper's convention)");
     for (const char* name :
-         {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--max-handle-loop", "--labeling"})
+         {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--max-handle-loop", "--refine-spacing",
+          "--refine-neighbors", "--labeling"})
         o->pu_only.push_back(cmd.get_option(name));
     o->rbf = kcli::reconstruct::add_rbf_options(cmd, o->rbf_only);
     return [o, &ctx] {

@@ -133,6 +133,9 @@ usage "reconstruct --k nan" "--k" -- "$bin" reconstruct "$missing" "$work/o.ply"
 usage "reconstruct --k inf" "--k" -- "$bin" reconstruct "$missing" "$work/o.ply" --k inf
 usage "reconstruct --max-handle-loop -1" "--max-handle-loop" -- "$bin" reconstruct "$missing" "$work/o.ply" --max-handle-loop -1
 usage "reconstruct rbf --max-handle-loop" "--max-handle-loop" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --max-handle-loop 5
+usage "reconstruct --refine-spacing -1" "--refine-spacing" -- "$bin" reconstruct "$missing" "$work/o.ply" --refine-spacing -1
+usage "reconstruct --refine-neighbors 3" "--refine-neighbors" -- "$bin" reconstruct "$missing" "$work/o.ply" --refine-neighbors 3
+usage "reconstruct rbf --refine-spacing" "--refine-spacing" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --refine-spacing 1
 usage "reconstruct --smoothing -1" "--smoothing" -- "$bin" reconstruct "$missing" "$work/o.ply" --smoothing -1
 usage "reconstruct --max-level 1.5" "--max-level" -- "$bin" reconstruct "$missing" "$work/o.ply" --max-level 1.5
 usage "reconstruct rbf --n-max 9" "--n-max" -- "$bin" reconstruct "$missing" "$work/o.ply" --method rbf --n-max 9

@@ -109,6 +109,39 @@ TEST_CASE("reconstruct_pu_graphcut: torus with 10 % outliers -> one closed genus
     CHECK(sign.mean > 5 * gc.mean);
 }
 
+TEST_CASE("reconstruct_pu_graphcut: step 8 puts clean data's surface at the samples' resolution, same topology") {
+    // Clean oriented points (no noise, no outliers): the surface of steps 6-7 is cut
+    // along the support triangulation's edges; step 8 refines it to the samples'
+    // spacing and moves it onto their MLS surface.
+    for (const int kind : {0, 1}) {
+        CAPTURE(kind);
+        const Shape shape{kind};
+        std::vector<ks::Vec3> pts, nrm;
+        kintsugi_test::sample_shape(shape, 20000, 0.0, 0.0, 5, pts, nrm);
+        const auto coarse = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.refine_spacing = 0});
+        const auto fine = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+        REQUIRE(coarse.status == ks::Status::ok);
+        REQUIRE(fine.status == ks::Status::ok);
+        const auto rc = check_guarantee(coarse.mesh), rf = check_guarantee(fine.mesh);
+        CHECK(rc.components == 1);
+        CHECK(rf.components == 1);
+        CHECK(rf.genus == kind);
+        CHECK(rc.genus == kind);
+        double mc = 0, xc = 0, mf = 0, xf = 0;
+        kintsugi_test::distance_to_shape(coarse.mesh, shape, mc, xc);
+        kintsugi_test::distance_to_shape(fine.mesh, shape, mf, xf);
+        MESSAGE("clean " << (kind ? "torus" : "sphere") << ": vertices " << coarse.mesh.vertices.size() << " -> "
+                         << fine.mesh.vertices.size() << ", mean " << mc / shape.diagonal() << " -> "
+                         << mf / shape.diagonal() << ", max " << xc / shape.diagonal() << " -> "
+                         << xf / shape.diagonal() << ", refined " << fine.refined_vertices);
+        CHECK(coarse.refined_vertices == 0);
+        CHECK(fine.refined_vertices > fine.mesh.vertices.size() * 9 / 10);
+        CHECK(fine.mesh.vertices.size() > 2 * coarse.mesh.vertices.size());
+        CHECK(mf < mc / 3);
+        CHECK(xf <= xc);
+    }
+}
+
 TEST_CASE("reconstruct_pu_graphcut: a second object 20x smaller, sampled with the part and 10 % outliers, is kept") {
     // The torus (20K points, 0.1 % noise) and a sphere of radius 0.07 (3,000 points, the
     // same noise in absolute terms), 0.8 beyond the torus, plus 10 % uniform outliers over
@@ -315,6 +348,9 @@ TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the pr
     expect(pts, nrm, {.untrusted_weight = 2}, "untrusted_weight");
     expect(pts, nrm, {.fill_radius_fraction = -1}, "fill_radius_fraction");
     expect(pts, nrm, {.fill_radius_fraction = std::numeric_limits<double>::quiet_NaN()}, "fill_radius_fraction");
+    expect(pts, nrm, {.refine_spacing = -1}, "refine_spacing");
+    expect(pts, nrm, {.refine_spacing = std::numeric_limits<double>::quiet_NaN()}, "refine_spacing");
+    expect(pts, nrm, {.refine_neighbors = 3}, "refine_neighbors");
     expect(pts, nrm, {.max_handle_loop = -1}, "max_handle_loop");
     expect(pts, nrm, {.max_handle_loop = std::numeric_limits<double>::infinity()}, "max_handle_loop");
     expect(pts, nrm, {.max_level = 0}, "max_level");

@@ -29,6 +29,8 @@
 #include <kintsugi/spatial/kd_tree.hpp>
 
 
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -288,7 +290,7 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
 struct RefineCounts {
     std::size_t inliers = 0;    ///< input points within the band of the field's zero set
     std::size_t splits = 0;     ///< edge splits
-    std::size_t projected = 0;  ///< mesh vertices moved onto the MLS surface of the inliers
+    std::size_t projected = 0;  ///< mesh vertices moved onto the data (MLS surface or field)
 };
 
 /// @brief Step 8 (ours): the cut's surface, whose vertices lie on the edges of the
@@ -304,13 +306,16 @@ struct RefineCounts {
 ///    its nearest inlier, interpolated along split edges.
 /// 3. Every edge longer than 4/3 x spacing x s is split at its midpoint, then edges are
 ///    flipped to Delaunay, until no edge is too long.
-/// 4. Each vertex supported as in step 7 (within fill_fraction x r_i of the centre of a
-///    trusted support, `trusted`; 0: every vertex) and with an inlier within 2 s is projected
-///    onto the MLS surface (APSS, kintsugi::PointSetSurface, k neighbours) of the
-///    inliers; a projection that moves it by more than `band` (a fit that failed: the
-///    data surface is within the field's tolerance of the zero set) is refused.
-/// 5. The other vertices (hole fills, refused fits) take thin-plate positions between
-///    the projected ones (biharmonic_fill).
+/// 4. Each vertex first takes Newton steps onto the zero set of `field` (at most 4 band
+///    in all: same-sign and hole-fill vertices can lie off it). Where an inlier lies
+///    within 2 s (0.5 s where step 7 found no trusted support within fill_fraction x
+///    r_i: a hole's rim), it is then projected onto the MLS surface (APSS,
+///    kintsugi::PointSetSurface, k neighbours) of the inliers. A projection that moves
+///    it by more than `band` or turns its normal (a fit that failed: across a sharp
+///    crease the sphere snaps onto the crease line) is refused, and the vertex keeps
+///    its converged Newton position (exact on flat parts).
+/// 5. The other vertices (hole fills) take thin-plate positions between the projected
+///    ones (biharmonic_fill), as the fill of step 7 did at the coarse resolution.
 /// @param outward_normals the input normals, pointing outward
 /// @return the counts; the mesh is unchanged when fewer than 2 k points are inliers
 inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, const std::vector<Vec3>& pts,
@@ -385,10 +390,10 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
     for (std::size_t b = 0; b < blocks; ++b) {
         progress.update(0.5 + 0.5 * static_cast<double>(b) / static_cast<double>(blocks));
         parallel_for(x.size() * b / blocks, x.size() * (b + 1) / blocks, [&](std::size_t v) {
-            if (hole[v]) return;
             // Newton steps onto the zero set of the field first (the mesh of steps 6-7
             // can lie off it: same-sign and hole-fill vertices), at most `reach` in all.
             Vec3 y = x[v];
+            bool newton = false;
             for (int it = 0; it < 4; ++it) {
                 Vec3 g;
                 const Scalar f = field.value_and_gradient(y, g);
@@ -396,17 +401,26 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
                 if (!std::isfinite(f) || !(g2 > 0)) break;
                 const Vec3 next = y - f / g2 * g;
                 if ((next - x[v]).squaredNorm() > reach * reach) break;
+                newton = (next - y).squaredNorm() <= Scalar(1e-6) * band * band;
                 y = next;
+                if (newton) break;
             }
             thread_local std::vector<Neighbor> nb;
             tree.knn(y, 1, nb);
             const Scalar s = sq[nb[0].index];
-            if (nb[0].squared_distance > 4 * s * s) return;  // no data here: a hole's fill
+            // No data near: a hole's fill (stricter where step 7 found no support either).
+            const Scalar lim = hole[v] ? Scalar(0.5) : Scalar(2);
+            if (nb[0].squared_distance > lim * lim * s * s) return;
             const SurfaceProjection p = mls.project_unchecked(y);
-            if (!p.point.allFinite() || (p.point - y).squaredNorm() > band * band || p.normal.dot(nx[v]) <= 0)
-                return;
-            x[v] = p.point;
-            moved[v] = 1;
+            if (p.point.allFinite() && (p.point - y).squaredNorm() <= band * band && p.normal.dot(nx[v]) > 0) {
+                x[v] = p.point;
+                moved[v] = 1;
+            } else if (newton && !hole[v]) {
+                // A fit that failed (across a sharp crease the sphere snaps onto the
+                // crease line): the zero set of the field, exact on flat parts.
+                x[v] = y;
+                moved[v] = 1;
+            }
         }, 64);
         progress.check();
     }
@@ -423,7 +437,31 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
         out.projected += moved[v];
     }
     progress.check();
-    if (out.projected > 0 && out.projected < x.size()) (void)biharmonic_fill(x, MeshTopology(x.size(), faces), rest);
+    if (out.projected > 0 && out.projected < x.size()) (void)bilaplacian_fill(x, MeshTopology(x.size(), faces), rest);
+    // The output has no degenerate triangle (pu_graphcut's guarantee): the corners of a
+    // face the moves made collinear (exact predicate, as topology_report) go back to
+    // their refined positions; should any remain, the surface of steps 6-7 is kept.
+    using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+    const K::Collinear_3 collinear = K().collinear_3_object();
+    auto degenerate = [&](const Face& t) {
+        const Vec3 &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
+        return !a.allFinite() || !b.allFinite() || !c.allFinite() ||
+               collinear(K::Point_3(a.x(), a.y(), a.z()), K::Point_3(b.x(), b.y(), b.z()),
+                         K::Point_3(c.x(), c.y(), c.z()));
+    };
+    for (int round = 0; round < 4; ++round) {
+        std::size_t bad = 0;
+        for (const Face& t : faces)
+            if (degenerate(t)) {
+                ++bad;
+                for (const Index v : t) x[v] = hm.position(v);
+            }
+        if (bad == 0) break;
+        if (round == 3) {
+            out.projected = 0;
+            return out;
+        }
+    }
     for (Index v = 0; v < x.size(); ++v) hm.position(v) = x[v];
     hm.to_mesh(mesh);
     return out;
