@@ -33,6 +33,20 @@ inline bool is_locally_delaunay(const HalfedgeMesh& m, Index h) {
     return angle(h) + angle(g) <= Scalar(3.14159265358979323846) + Scalar(1e-12);
 }
 
+/// Whether flipping the edge of h would make a triangle with (nearly) collinear corners:
+/// after a split at the midpoint, the two halves of the old edge are collinear, and a
+/// flip that joins their far ends would make a zero-area triangle.
+inline bool flip_degenerates(const HalfedgeMesh& m, Index h) {
+    const Index g = m.twin(h);
+    if (g == HalfedgeMesh::invalid) return true;
+    const Vec3 &a = m.position(m.opposite(h)), &b = m.position(m.opposite(g));
+    for (const Index end : {m.source(h), m.target(h)}) {
+        const Vec3 u = b - a, v = m.position(end) - a;
+        if (!(u.cross(v).norm() > Scalar(1e-9) * u.norm() * v.norm())) return true;
+    }
+    return false;
+}
+
 /// @brief Refines hm in rounds: flips the editable edges to Delaunay; then, per round,
 /// splits every editable edge that is too long (each edge considered once per round,
 /// halfedges from `first` on, in index order) and flips again; stops after a round
@@ -54,7 +68,7 @@ std::size_t split_and_flip(HalfedgeMesh& hm, Index first, Editable&& editable, T
             for (Index h = first; h < hm.halfedge_capacity(); ++h) {
                 const Index g = hm.twin(h);
                 if (g == HalfedgeMesh::invalid || g < h || !editable(h)) continue;
-                if (!is_locally_delaunay(hm, h) && hm.flip(h)) any = true;
+                if (!is_locally_delaunay(hm, h) && !flip_degenerates(hm, h) && hm.flip(h)) any = true;
             }
             progress.check();
             if (!any) break;

@@ -300,9 +300,19 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
 /// max_handle_loop mesh edges goes around are cut and capped (one-tetrahedron bridges
 /// and perforations of the labelling); PUGraphcutResult::handles_removed counts them.
 ///
+/// Detail at the samples' resolution (beyond the paper, step 8): the surface of steps
+/// 6-7 has its vertices on the edges of the support triangulation, few and long where
+/// the surface is smooth. It is refined by edge splits and Delaunay flips until its
+/// edges are about refine_spacing times the local sample spacing, and every vertex
+/// with data near it is moved onto the MLS surface (APSS) of the input points near the
+/// field's zero set (the outliers far from it are left out); hole fills are re-faired
+/// between them. The labelling keeps the topology (no edge is collapsed). See
+/// docs/methods/pu_graphcut.md for the measurements.
+///
 /// Output guarantee: a closed, consistently outward-oriented 2-manifold triangle mesh
 /// without degenerate triangles (before smoothing no two vertices coincide; smoothing
-/// moves vertices but never changes the connectivity).
+/// moves vertices but never changes the connectivity; step 8 only splits and flips
+/// edges, and a move that would make a triangle degenerate is undone).
 ///
 /// Deterministic: the same input and seed give bit-identical output whatever the
 /// number of threads.
