@@ -405,14 +405,31 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
                 y = next;
                 if (newton) break;
             }
+            // Where Newton did not converge (outside the field's cube, where it is
+            // undefined, the coarse surface can bulge past a flat face at the side of the
+            // box), the MLS projection starts from the vertex itself and may move it up to
+            // `reach`; the data tests below are made where it lands.
+            const SurfaceProjection p = mls.project_unchecked(newton ? y : x[v]);
+            const Vec3 at = newton ? y : p.point;
+            if (!p.point.allFinite() || !at.allFinite()) return;
             thread_local std::vector<Neighbor> nb;
-            tree.knn(y, 1, nb);
+            tree.knn(at, 1, nb);
             const Scalar s = sq[nb[0].index];
-            // No data near: a hole's fill (stricter where step 7 found no support either).
-            const Scalar lim = hole[v] ? Scalar(0.5) : Scalar(2);
-            if (nb[0].squared_distance > lim * lim * s * s) return;
-            const SurfaceProjection p = mls.project_unchecked(y);
-            if (p.point.allFinite() && (p.point - y).squaredNorm() <= band * band && p.normal.dot(nx[v]) > 0) {
+            // No data near: a hole's fill. Where step 7 found no support either, the data
+            // must also surround the point (not only lie on one side: a hole's rim).
+            if (nb[0].squared_distance > 4 * s * s) return;
+            if (hole[v] && nb[0].squared_distance > s * s / 4) {
+                thread_local std::vector<Neighbor> ring;
+                tree.knn(at, 16, ring);
+                Vec3 c = Vec3::Zero();
+                for (const auto& q : ring) c += tree.point(q.index);
+                const Vec3 off = c / static_cast<Scalar>(ring.size()) - at;
+                const Vec3 n = nx[v].normalized();
+                const Scalar tangential = (off - off.dot(n) * n).norm();
+                if (!(tangential <= Scalar(0.25) * std::sqrt(ring.back().squared_distance))) return;
+            }
+            const Scalar limit = newton ? band : reach;
+            if ((p.point - (newton ? y : x[v])).squaredNorm() <= limit * limit && p.normal.dot(nx[v]) > 0) {
                 x[v] = p.point;
                 moved[v] = 1;
             } else if (newton && !hole[v]) {
