@@ -2,18 +2,21 @@
 # This Source Code Form is subject to the terms of the Mozilla Public
 # License, v. 2.0. If a copy of the MPL was not distributed with this
 # file, You can obtain one at https://mozilla.org/MPL/2.0/.
-"""kintsugi's octree RBF (kintsugi reconstruct --method rbf) against Open3D's screened
+"""kintsugi's octree RBF (kintsugi reconstruct --method rbf), or its PU + graph cut
+(--method pu-graphcut), against Open3D's screened
 Poisson reconstruction (depth 10), same points, same run: fertility (libigl) and armadillo
-(CGAL's data) and the guided-denoising set's clean SharpSphere, Block and Twelve, closed meshes
+(CGAL's data) and the guided-denoising set's clean SharpSphere, Block and Twelve, CGAL's bunny00 and eight, closed meshes
 sampled uniformly by area with the face normals, and the Berger
 et al. benchmark's gargoyle and dc (oriented points as given). Reports wall and CPU time (CPU of all threads:
 Open3D's Poisson is OpenMP-parallel; it runs in a child process, so that an abort is a row) and accuracy: for the sampled meshes the mean distance from
 the true surface to the result and back; for the Berger scans (no true surface) the mean
 distance from the input points to the result. Distances in % of the reference's bounding-box
-diagonal. Neither shape was used to tune kintsugi's defaults (held out; see
-docs/methods/rbf_octree.md, which keeps the results).
+diagonal. For the RBF neither shape was used to tune kintsugi's defaults (held out; see
+docs/methods/rbf_octree.md, which keeps the results); for the PU method, bunny00 and the Block
+were (docs/methods/pu_graphcut.md).
 
-Usage: /usr/bin/python3 bench/compare_rbf_open3d.py KINTSUGI_BINARY [--points 200000] [--shapes fertility,armadillo,gargoyle,dc,sharpsphere,block,twelve]
+Usage: /usr/bin/python3 bench/compare_rbf_open3d.py KINTSUGI_BINARY [--method rbf|pu-graphcut] [--points 200000]
+       [--shapes fertility,armadillo,gargoyle,dc,sharpsphere,block,twelve,bunny00,eight]
 Needs python3-open3d (Debian) and ../shared/data.
 """
 import argparse

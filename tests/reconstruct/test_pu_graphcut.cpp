@@ -130,7 +130,7 @@ TEST_CASE("reconstruct_pu_graphcut: step 8 puts clean data's surface at the samp
         double mc = 0, xc = 0, mf = 0, xf = 0;
         kintsugi_test::distance_to_shape(coarse.mesh, shape, mc, xc);
         kintsugi_test::distance_to_shape(fine.mesh, shape, mf, xf);
-        MESSAGE("clean " << (kind ? "torus" : "sphere") << ": vertices " << coarse.mesh.vertices.size() << " -> "
+        MESSAGE("clean " << std::string(kind ? "torus" : "sphere") << ": vertices " << coarse.mesh.vertices.size() << " -> "
                          << fine.mesh.vertices.size() << ", mean " << mc / shape.diagonal() << " -> "
                          << mf / shape.diagonal() << ", max " << xc / shape.diagonal() << " -> "
                          << xf / shape.diagonal() << ", refined " << fine.refined_vertices);
