@@ -227,7 +227,11 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
                 if (t <= 0) return -f[a];
                 if (t >= 1) return -f[b];
                 const Scalar v = field(Vec3(pa + t * d));
-                return std::isnan(v) ? Scalar(0) : v;
+                // Where no support ball covers the point (past a face at the side of the
+                // field's cube), the end values' interpolation: 0 there put a "root" at
+                // the edge of the coverage, a dome up to 4 % of the diagonal above the
+                // Block's flat top.
+                return std::isnan(v) ? -((1 - t) * f[a] + t * f[b]) : v;
             }, rp);
             if (!root) return;
             mt.mesh.vertices[i] = pa + std::clamp(*root, min_fraction, 1 - min_fraction) * d;
