@@ -56,9 +56,17 @@ inline bool face_runs(const Face& t, Index a, Index b) {
     return false;
 }
 
+/// Whether a triangle has zero area: a non-finite corner, or exactly collinear corners
+/// (CGAL's exact predicate). The one test behind TopologyReport::degenerate_faces.
+inline bool zero_area_triangle(const Vec3& a, const Vec3& b, const Vec3& c) {
+    using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+    return !a.allFinite() || !b.allFinite() || !c.allFinite() ||
+           K().collinear_3_object()(K::Point_3(a.x(), a.y(), a.z()), K::Point_3(b.x(), b.y(), b.z()),
+                                    K::Point_3(c.x(), c.y(), c.z()));
+}
+
 /// The report on the internal layout. @pre indices checked by the caller.
 inline TopologyReport topology_report(const std::vector<Vec3>& vertices, const std::vector<Face>& faces) {
-    using K = CGAL::Exact_predicates_inexact_constructions_kernel;
     TopologyReport r;
     const std::size_t nv = vertices.size();
     r.vertices = nv;
@@ -70,18 +78,13 @@ inline TopologyReport topology_report(const std::vector<Vec3>& vertices, const s
     std::vector<Face> valid;
     valid.reserve(faces.size());
     std::vector<char> used_any(nv, 0);
-    const K::Collinear_3 collinear = K().collinear_3_object();
     for (const Face& t : faces) {
         for (Index v : t) used_any[v] = 1;
         if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
             ++r.degenerate_faces;
             continue;
         }
-        const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
-        if (!a.allFinite() || !b.allFinite() || !c.allFinite() ||
-            collinear(K::Point_3(a.x(), a.y(), a.z()), K::Point_3(b.x(), b.y(), b.z()),
-                      K::Point_3(c.x(), c.y(), c.z())))
-            ++r.degenerate_faces;
+        if (zero_area_triangle(vertices[t[0]], vertices[t[1]], vertices[t[2]])) ++r.degenerate_faces;
         valid.push_back(t);
     }
     r.isolated_vertices = static_cast<std::size_t>(std::count(used_any.begin(), used_any.end(), char{0}));

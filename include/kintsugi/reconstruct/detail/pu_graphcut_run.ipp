@@ -222,10 +222,9 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         // Step 8 (ours): detail at the samples' resolution (refine_spacing).
         progress.stage("refine", handles_end, 1.0);
         if (params.refine_spacing > 0 && params.refine_neighbors <= data_pts.size()) {
-            const RefineCounts rc = refine_to_samples(mt.mesh, tfield, data_pts, data_nrm, params.refine_spacing,
-                                                      params.refine_neighbors, field.epsilon(), sup, trusted,
-                                                      params.fill_radius_fraction, progress);
-            res.refined_vertices = rc.projected;
+            res.refined_vertices = refine_to_samples(mt.mesh, tfield, data_pts, data_nrm, params.refine_spacing,
+                                                     params.refine_neighbors, field.epsilon(), sup, trusted,
+                                                     params.fill_radius_fraction, progress);
         }
         res.mesh = std::move(mt.mesh);
         auto t = progress.finish();

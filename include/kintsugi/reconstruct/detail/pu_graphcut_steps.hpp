@@ -20,16 +20,16 @@
 #include <kintsugi/field/point_set_surface.hpp>
 #include <kintsugi/graph/st_cut.hpp>
 #include <kintsugi/mesh/fair.hpp>
+#include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/halfedge_mesh.hpp>
 #include <kintsugi/mesh/marching_tetrahedra.hpp>
 #include <kintsugi/mesh/refine.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
+#include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
-
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
 #include <algorithm>
 #include <array>
@@ -290,13 +290,6 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
     }
 }
 
-/// Counts of the refinement (step 8).
-struct RefineCounts {
-    std::size_t inliers = 0;    ///< input points within the band of the field's zero set
-    std::size_t splits = 0;     ///< edge splits
-    std::size_t projected = 0;  ///< mesh vertices moved onto the data (MLS surface or field)
-};
-
 /// @brief Step 8 (ours): the cut's surface, whose vertices lie on the edges of the
 /// support triangulation (few and long where the surface is smooth), refined to the
 /// samples' spacing and moved onto the data. The labelling keeps the topology: edges
@@ -324,12 +317,13 @@ struct RefineCounts {
 ///    between the projected ones and the coarse ones left where step 7 put them.
 /// 6. A triangle made degenerate has its corners put back (see the end).
 /// @param outward_normals the input normals, pointing outward
-/// @return the counts; the mesh is unchanged when fewer than 2 k points are inliers
-inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, const std::vector<Vec3>& pts,
+/// @return the number of vertices moved onto the data (MLS surface or field); 0, the mesh
+///         unchanged, when fewer than 2 k points are inliers
+inline std::size_t refine_to_samples(IndexedMesh& mesh, const PUField& field, const std::vector<Vec3>& pts,
                                       const std::vector<Vec3>& outward_normals, Scalar spacing, std::size_t k,
                                       Scalar band, const std::vector<PUSupport>& sup,
                                       const std::vector<Index>& trusted, Scalar fill_fraction, Progress& progress) {
-    RefineCounts out;
+    std::size_t projected = 0;
     // 1. Inliers.
     std::vector<std::uint8_t> near(pts.size(), 0);
     parallel_for(0, pts.size(), [&](std::size_t i) {
@@ -344,8 +338,7 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
             ip.push_back(pts[i]);
             in.push_back(outward_normals[i]);
         }
-    out.inliers = ip.size();
-    if (ip.size() < std::max<std::size_t>(2 * k, 16) || mesh.faces.empty()) return out;
+    if (ip.size() < std::max<std::size_t>(2 * k, 16) || mesh.faces.empty()) return 0;
     progress.check();
     // Tolerance 1e-3 x h: the vertices start within a chord's error of the surface;
     // the same distances as 1e-4 to 1e-4 % of the diagonal at 80 % of the time (bunny00).
@@ -375,26 +368,24 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
         for (Index v = 0; v < s0.size(); ++v) hm.scalar(ch, v) = s0[v];
     }
     const Scalar limit = Scalar(4) / 3 * spacing;
-    out.splits = split_and_flip(
+    (void)split_and_flip(
         hm, 0, [](Index) { return true; },
         [&](Index h, Scalar len) {
             return len > limit * std::min(hm.scalar(ch, hm.source(h)), hm.scalar(ch, hm.target(h)));
         },
         [&](Index h) { hm.split(h, 0.5); }, 30, progress, 0.1, 0.5);
     // 4. Projection.
-    std::vector<Vec3> x(hm.vertex_capacity());
+    IndexedMesh work;  // the refined mesh; its positions x move
+    std::vector<Vec3>& x = work.vertices;
+    std::vector<Face>& faces = work.faces;
+    x.resize(hm.vertex_capacity());
     for (Index v = 0; v < x.size(); ++v) x[v] = hm.position(v);
+    faces.reserve(hm.num_faces());
+    for (Index f = 0; f < hm.face_capacity(); ++f)
+        if (!hm.is_removed_face(f)) faces.push_back({hm.face_vertex(f, 0), hm.face_vertex(f, 1), hm.face_vertex(f, 2)});
     std::vector<std::uint8_t> moved(x.size(), 0), hole(x.size(), 0);
     if (fill_fraction > 0) mark_unsupported(x, sup, trusted, fill_fraction, hole, progress.stop());
-    std::vector<Vec3> nx(x.size(), Vec3::Zero());  // area-weighted vertex normals
-    for (Index f = 0; f < hm.face_capacity(); ++f) {
-        if (hm.is_removed_face(f)) continue;
-        const Index a = hm.face_vertex(f, 0), b = hm.face_vertex(f, 1), c = hm.face_vertex(f, 2);
-        const Vec3 n = (x[b] - x[a]).cross(x[c] - x[a]);
-        nx[a] += n;
-        nx[b] += n;
-        nx[c] += n;
-    }
+    const std::vector<Vec3> nx = vertex_normals(work);
     const Scalar reach = 4 * band;
     const std::size_t blocks = std::clamp<std::size_t>(x.size() / 4096, 1, 40);
     for (std::size_t b = 0; b < blocks; ++b) {
@@ -437,8 +428,7 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
                 Vec3 c = Vec3::Zero();
                 for (const auto& q : ring) c += tree.point(q.index);
                 const Vec3 off = c / static_cast<Scalar>(ring.size()) - at;
-                const Vec3 n = nx[v].normalized();
-                const Scalar tangential = (off - off.dot(n) * n).norm();
+                const Scalar tangential = (off - off.dot(nx[v]) * nx[v]).norm();
                 if (!(tangential <= Scalar(0.25) * std::sqrt(ring.back().squared_distance))) return;
             }
             const Scalar limit = undefined ? reach : band;
@@ -459,44 +449,29 @@ inline RefineCounts refine_to_samples(IndexedMesh& mesh, const PUField& field, c
     // the projected vertices and the coarse vertices of step 7's fill, which stay (re-
     // fairing those too raised the largest error in bunny00's holes, seed 1: 0.74 ->
     // 0.95 %).
-    std::vector<Face> faces;
-    faces.reserve(hm.num_faces());
-    for (Index f = 0; f < hm.face_capacity(); ++f)
-        if (!hm.is_removed_face(f)) faces.push_back({hm.face_vertex(f, 0), hm.face_vertex(f, 1), hm.face_vertex(f, 2)});
     std::vector<std::uint8_t> rest(x.size(), 0);
     for (Index v = 0; v < x.size(); ++v) {
         rest[v] = !moved[v] && !hm.is_removed_vertex(v) && (v >= nv0 || !hole[v]);
-        out.projected += moved[v];
+        projected += moved[v];
     }
     progress.check();
-    if (out.projected > 0 && out.projected < x.size()) (void)bilaplacian_fill(x, MeshTopology(x.size(), faces), rest);
+    if (projected > 0 && projected < x.size()) (void)bilaplacian_fill(x, MeshTopology(x.size(), faces), rest);
     // The output has no degenerate triangle (pu_graphcut's guarantee): the corners of a
-    // face the moves made collinear (exact predicate, as topology_report) go back to
+    // face the moves made collinear (zero_area_triangle, topology_report's test) go back to
     // their refined positions; should any remain, the surface of steps 6-7 is kept.
-    using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-    const K::Collinear_3 collinear = K().collinear_3_object();
-    auto degenerate = [&](const Face& t) {
-        const Vec3 &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
-        return !a.allFinite() || !b.allFinite() || !c.allFinite() ||
-               collinear(K::Point_3(a.x(), a.y(), a.z()), K::Point_3(b.x(), b.y(), b.z()),
-                         K::Point_3(c.x(), c.y(), c.z()));
-    };
     for (int round = 0; round < 4; ++round) {
         std::size_t bad = 0;
         for (const Face& t : faces)
-            if (degenerate(t)) {
+            if (zero_area_triangle(x[t[0]], x[t[1]], x[t[2]])) {
                 ++bad;
                 for (const Index v : t) x[v] = hm.position(v);
             }
         if (bad == 0) break;
-        if (round == 3) {
-            out.projected = 0;
-            return out;
-        }
+        if (round == 3) return 0;
     }
     for (Index v = 0; v < x.size(); ++v) hm.position(v) = x[v];
     hm.to_mesh(mesh);
-    return out;
+    return projected;
 }
 
 }  // namespace kintsugi::detail
