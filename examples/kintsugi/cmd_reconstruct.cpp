@@ -180,6 +180,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parts"] = r.parts;
         j["handles_removed"] = r.handles_removed;
         j["refined_vertices"] = r.refined_vertices;
+        j["refine_noise_ratio"] = r.refine_noise_ratio;
+        j["refine_neighbors_used"] = r.refine_neighbors_used;
         j["vertices"] = rep.vertices;
         j["faces"] = rep.faces;
         j["components"] = rep.components;

@@ -141,10 +141,38 @@ TEST_CASE("reconstruct_pu_graphcut: step 8 puts clean data's surface at the samp
                          << xf / shape.diagonal() << ", refined " << fine.refined_vertices);
         CHECK(coarse.refined_vertices == 0);
         CHECK(fine.refined_vertices > fine.mesh.vertices.size() * 9 / 10);
+        // No noise: the fit keeps its 20 neighbours.
+        CHECK(fine.refine_noise_ratio < 0.1);
+        CHECK(fine.refine_neighbors_used == 20);
         CHECK(fine.mesh.vertices.size() > 2 * coarse.mesh.vertices.size());
         CHECK(mf < mc / 3);
         CHECK(xf <= xc);
     }
+}
+
+TEST_CASE("reconstruct_pu_graphcut: step 8 on data denser than their noise widens its fit") {
+    // The sphere, 20K points with noise of 0.4 % of the diagonal (about a quarter of the
+    // samples' spacing): a 20-point fit would follow the noise; step 8 measures it and takes more
+    // neighbours, and the refined surface is no farther from the sphere than the coarse one.
+    const Shape sphere{0};
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(sphere, 20000, 0.004, 0.0, 9, pts, nrm);
+    const auto coarse = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.refine_spacing = 0});
+    const auto fine = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+    REQUIRE(coarse.status == ks::Status::ok);
+    REQUIRE(fine.status == ks::Status::ok);
+    const auto rf = check_guarantee(fine.mesh);
+    CHECK(rf.components == 1);
+    CHECK(rf.genus == 0);
+    double mc = 0, xc = 0, mf = 0, xf = 0;
+    kintsugi_test::distance_to_shape(coarse.mesh, sphere, mc, xc);
+    kintsugi_test::distance_to_shape(fine.mesh, sphere, mf, xf);
+    MESSAGE("noisy sphere: noise / spacing " << fine.refine_noise_ratio << ", neighbours " << fine.refine_neighbors_used
+                                             << ", mean " << mc / sphere.diagonal() << " -> " << mf / sphere.diagonal());
+    CHECK(fine.refine_noise_ratio > 0.25);
+    CHECK(fine.refine_neighbors_used > 20);
+    CHECK(fine.refined_vertices > fine.mesh.vertices.size() / 2);
+    CHECK(mf <= mc);
 }
 
 TEST_CASE("reconstruct_pu_graphcut: a second object 20x smaller, sampled with the part and 10 % outliers, is kept") {

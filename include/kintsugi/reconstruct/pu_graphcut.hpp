@@ -138,7 +138,8 @@ struct PUGraphcutParams {
     /// twice the vertices and time (docs/methods/pu_graphcut.md).
     Scalar refine_spacing = 1.5;
     /// Neighbours of the MLS fit of step 8 (kintsugi::PointSetSurfaceParams::k): more
-    /// average more noise and flatten more detail. >= 4; default 20.
+    /// average more noise and flatten more detail. >= 4; default 20. The least number:
+    /// data denser than their noise take more (PUGraphcutResult::refine_neighbors_used).
     std::size_t refine_neighbors = 20;
 };
 
@@ -179,6 +180,14 @@ struct PUGraphcutResult {
     std::size_t handles_removed = 0;
     /// Mesh vertices moved onto the MLS surface of the data by step 8 (refine_spacing).
     std::size_t refined_vertices = 0;
+    /// Step 8's noise estimate: the standard deviation of the inliers' offsets from their
+    /// local planes over their median spacing (the largest over the parts; 0 when step 8
+    /// did not run). Above about 0.22 the MLS fit takes more than refine_neighbors points.
+    Scalar refine_noise_ratio = 0;
+    /// The neighbours step 8's MLS fit used: refine_neighbors, or (20 x refine_noise_ratio)^2
+    /// for data denser than their noise, at most 16 x refine_neighbors (the largest over
+    /// the parts; 0 when step 8 did not run).
+    std::size_t refine_neighbors_used = 0;
 };
 
 namespace detail {

@@ -222,9 +222,12 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         // Step 8 (ours): detail at the samples' resolution (refine_spacing).
         progress.stage("refine", handles_end, 1.0);
         if (params.refine_spacing > 0 && params.refine_neighbors <= data_pts.size()) {
-            res.refined_vertices = refine_to_samples(mt.mesh, tfield, data_pts, data_nrm, params.refine_spacing,
+            const RefineStats rs = refine_to_samples(mt.mesh, tfield, data_pts, data_nrm, params.refine_spacing,
                                                      params.refine_neighbors, field.epsilon(), sup, trusted,
                                                      params.fill_radius_fraction, progress);
+            res.refined_vertices = rs.projected;
+            res.refine_noise_ratio = rs.noise_ratio;
+            res.refine_neighbors_used = rs.neighbors;
         }
         res.mesh = std::move(mt.mesh);
         auto t = progress.finish();
@@ -329,6 +332,8 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
               &R::refined_vertices})
             res.*count += r.*count;
         res.cut_value += r.cut_value;
+        res.refine_noise_ratio = std::max(res.refine_noise_ratio, r.refine_noise_ratio);
+        res.refine_neighbors_used = std::max(res.refine_neighbors_used, r.refine_neighbors_used);
         for (const StageTiming& t : r.timings) {
             auto it = std::find_if(res.timings.begin(), res.timings.end(),
                                    [&](const StageTiming& u) { return u.stage == t.stage; });
