@@ -51,6 +51,14 @@
 //     CGAL Poisson at 2M (2026-11-23): not finished after 901 s wall / 819 s CPU, 8.9 GB
 //     resident and growing, when killed at the time limit: > 29x the PU wall time, > 4.4x
 //     its memory.
+// With step 8 (the refinement to the samples' spacing), 2026-12-03 17:31 UTC, idle VM, a
+// 20-point MLS fit: 100K 3.13 s wall / 4.58 s CPU, 192 MB, mean 0.0164 %, Hausdorff 1.27 %,
+// truth to result 0.0176 %, refine 0.88 s; 2M 62.4 s / 95.3 s, 2.27 GB, mean 0.0172 %,
+// Hausdorff 0.84 %, area ratio 1.071 (the fit followed the noise), stages pu_octree 2.59,
+// pu_cover 9.07, pu_index 0.58, triangulation 16.26, graph_cut 3.10, marching_tetrahedra
+// 1.72, smoothing 0.18, handles 0.11, refine 28.29. Step 8 has since widened its fit for
+// data denser than their noise (docs/methods/pu_graphcut.md: the CLI on the same recipe,
+// 89 neighbours, mean 0.0090 %, refine 59 s); not yet re-run here.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
