@@ -32,12 +32,12 @@
 
 
 #include <algorithm>
-#include <optional>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <stop_token>
 #include <utility>
 #include <vector>
@@ -291,6 +291,13 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
     }
 }
 
+/// What refine_to_samples did.
+struct RefineStats {
+    std::size_t projected = 0;  ///< vertices moved onto the data
+    Scalar noise_ratio = 0;     ///< estimated noise (standard deviation) / median spacing of the inliers
+    std::size_t neighbors = 0;  ///< neighbours of the MLS fit (k, or more for noisy dense data)
+};
+
 /// @brief Step 8 (ours): the cut's surface, whose vertices lie on the edges of the
 /// support triangulation (few and long where the surface is smooth), refined to the
 /// samples' spacing and moved onto the data. The labelling keeps the topology: edges
@@ -301,7 +308,9 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
 ///    pass both).
 /// 2. Spacing s(q) of each inlier: the radius of its 8 nearest inliers x sqrt(π/8) (the
 ///    mean spacing of 8 points on a disk of that radius); s at a mesh vertex is that of
-///    its nearest inlier, interpolated along split edges.
+///    its nearest inlier, interpolated along split edges. The noise sigma, from the
+///    inliers' offsets to their neighbours' centroid, widens the fit of step 4 to
+///    (20 sigma / s)^2 neighbours where that exceeds k (data denser than their noise).
 /// 3. Every edge longer than 4/3 x spacing x s is split at its midpoint, then edges are
 ///    flipped to Delaunay, until no edge is too long.
 /// 4. Each vertex first takes Newton steps onto the zero set of `field` (at most 4 band
@@ -318,15 +327,9 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
 ///    between the projected ones and the coarse ones left where step 7 put them.
 /// 6. A triangle made degenerate has its corners put back (see the end).
 /// @param outward_normals the input normals, pointing outward
-/// @return the number of vertices moved onto the data (MLS surface or field); 0, the mesh
-///         unchanged, when fewer than 2 k points are inliers
-/// What refine_to_samples did.
-struct RefineStats {
-    std::size_t projected = 0;  ///< vertices moved onto the data
-    Scalar noise_ratio = 0;     ///< estimated noise (standard deviation) / median spacing of the inliers
-    std::size_t neighbors = 0;  ///< neighbours of the MLS fit (k, or more for noisy dense data)
-};
-
+/// @return the vertices moved onto the data (MLS surface or field), the noise estimate and
+///         the fit's neighbours; projected 0, the mesh unchanged, when fewer than 2 k
+///         points are inliers or flat faces could not be mended
 inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, const std::vector<Vec3>& pts,
                                       const std::vector<Vec3>& outward_normals, Scalar spacing, std::size_t k,
                                       Scalar band, const std::vector<PUSupport>& sup,
