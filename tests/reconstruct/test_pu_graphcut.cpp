@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -58,6 +59,25 @@ Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* k
     o.max /= s.diagonal();
     if (keep) *keep = r;
     return o;
+}
+
+/// Step 8 off and on (the defaults) on the same 20K samples of a shape, without outliers.
+struct CoarseFine {
+    ks::PUGraphcutResult coarse, fine;
+    double coarse_mean = 0, coarse_max = 0, fine_mean = 0, fine_max = 0;  // in the shape's units
+};
+
+CoarseFine coarse_and_fine(const Shape& shape, double noise, std::uint64_t seed) {
+    std::vector<ks::Vec3> pts, nrm;
+    kintsugi_test::sample_shape(shape, 20000, noise, 0.0, seed, pts, nrm);
+    CoarseFine r;
+    r.coarse = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.refine_spacing = 0});
+    r.fine = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+    REQUIRE(r.coarse.status == ks::Status::ok);
+    REQUIRE(r.fine.status == ks::Status::ok);
+    kintsugi_test::distance_to_shape(r.coarse.mesh, shape, r.coarse_mean, r.coarse_max);
+    kintsugi_test::distance_to_shape(r.fine.mesh, shape, r.fine_mean, r.fine_max);
+    return r;
 }
 
 }  // namespace
@@ -121,20 +141,15 @@ TEST_CASE("reconstruct_pu_graphcut: step 8 puts clean data's surface at the samp
     for (const int kind : {0, 1}) {
         CAPTURE(kind);
         const Shape shape{kind};
-        std::vector<ks::Vec3> pts, nrm;
-        kintsugi_test::sample_shape(shape, 20000, 0.0, 0.0, 5, pts, nrm);
-        const auto coarse = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.refine_spacing = 0});
-        const auto fine = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
-        REQUIRE(coarse.status == ks::Status::ok);
-        REQUIRE(fine.status == ks::Status::ok);
+        const CoarseFine cf = coarse_and_fine(shape, 0.0, 5);
+        const auto& coarse = cf.coarse;
+        const auto& fine = cf.fine;
+        const double mc = cf.coarse_mean, xc = cf.coarse_max, mf = cf.fine_mean, xf = cf.fine_max;
         const auto rc = check_guarantee(coarse.mesh), rf = check_guarantee(fine.mesh);
         CHECK(rc.components == 1);
         CHECK(rf.components == 1);
         CHECK(rf.genus == kind);
         CHECK(rc.genus == kind);
-        double mc = 0, xc = 0, mf = 0, xf = 0;
-        kintsugi_test::distance_to_shape(coarse.mesh, shape, mc, xc);
-        kintsugi_test::distance_to_shape(fine.mesh, shape, mf, xf);
         MESSAGE("clean " << std::string(kind ? "torus" : "sphere") << ": vertices " << coarse.mesh.vertices.size() << " -> "
                          << fine.mesh.vertices.size() << ", mean " << mc / shape.diagonal() << " -> "
                          << mf / shape.diagonal() << ", max " << xc / shape.diagonal() << " -> "
@@ -155,18 +170,12 @@ TEST_CASE("reconstruct_pu_graphcut: step 8 on data denser than their noise widen
     // samples' spacing): a 20-point fit would follow the noise; step 8 measures it and takes more
     // neighbours, and the refined surface is no farther from the sphere than the coarse one.
     const Shape sphere{0};
-    std::vector<ks::Vec3> pts, nrm;
-    kintsugi_test::sample_shape(sphere, 20000, 0.004, 0.0, 9, pts, nrm);
-    const auto coarse = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.refine_spacing = 0});
-    const auto fine = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
-    REQUIRE(coarse.status == ks::Status::ok);
-    REQUIRE(fine.status == ks::Status::ok);
+    const CoarseFine cf = coarse_and_fine(sphere, 0.004, 9);
+    const auto& fine = cf.fine;
+    const double mc = cf.coarse_mean, mf = cf.fine_mean;
     const auto rf = check_guarantee(fine.mesh);
     CHECK(rf.components == 1);
     CHECK(rf.genus == 0);
-    double mc = 0, xc = 0, mf = 0, xf = 0;
-    kintsugi_test::distance_to_shape(coarse.mesh, sphere, mc, xc);
-    kintsugi_test::distance_to_shape(fine.mesh, sphere, mf, xf);
     MESSAGE("noisy sphere: noise / spacing " << fine.refine_noise_ratio << ", neighbours " << fine.refine_neighbors_used
                                              << ", mean " << mc / sphere.diagonal() << " -> " << mf / sphere.diagonal());
     CHECK(fine.refine_noise_ratio > 0.25);
