@@ -180,9 +180,9 @@ struct PUGraphcutResult {
     std::size_t handles_removed = 0;
     /// Mesh vertices moved onto the MLS surface of the data by step 8 (refine_spacing).
     std::size_t refined_vertices = 0;
-    /// Step 8's noise estimate: the standard deviation of the inliers' offsets from their
-    /// local planes over their median spacing (the largest over the parts; 0 when step 8
-    /// did not run). Above about 0.22 the MLS fit takes more than refine_neighbors points.
+    /// Step 8's noise estimate: the standard deviation of the inliers' offsets along their
+    /// normals from their 8 neighbours' centroid, over their median spacing (the largest
+    /// over the parts; 0 when step 8 did not run). Above about 0.22 the MLS fit takes more than refine_neighbors points.
     Scalar refine_noise_ratio = 0;
     /// The neighbours step 8's MLS fit used: refine_neighbors, or (20 x refine_noise_ratio)^2
     /// for data denser than their noise, at most 16 x refine_neighbors (the largest over

@@ -376,14 +376,10 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
         // median spacing: k = (20 sigma / s)^2, at most 16 k. sigma, Gaussian: the offsets'
         // median / 0.6745 x 3 / sqrt(8) (the centroid holds the point). Measured
         // (docs/methods/pu_graphcut.md): bunny00 at 2M points, 0.1 % noise, sigma = 0.47 s:
-        // k = 20 -> 88, mean 0.0175 -> 0.0093 % (the surface of steps 6-7: 0.0135 %); at
+        // k = 20 -> 89, mean 0.0175 -> 0.0090 % (the surface of steps 6-7: 0.0135 %); at
         // 100K points sigma = 0.2 s and clean data sigma < 0.03 s keep k.
-        std::vector<Scalar> o = off, t = sq;
-        const auto median = [](std::vector<Scalar>& v) {
-            std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-            return v[v.size() / 2];
-        };
-        const Scalar sigma = median(o) / Scalar(0.6745) * Scalar(1.0606601717798212), s_med = median(t);
+        const Scalar sigma = upper_median(std::move(off)) / Scalar(0.6745) * Scalar(1.0606601717798212);
+        const Scalar s_med = upper_median(sq);
         if (s_med > 0) {
             stats.noise_ratio = sigma / s_med;
             const Scalar want = std::ceil(Scalar(400) * (sigma / s_med) * (sigma / s_med));
