@@ -427,6 +427,9 @@ TEST_CASE("bad input throws invalid_input naming the problem and leaves the mesh
     expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.c = -1}); }, "c = -1");
     expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.detection = {.edge_threshold = 2}}); }, "edge_threshold");
     expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.face_iterations = 20000}); }, "face_iterations");
+    expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.lowpass_iterations = 10001}); }, "lowpass_iterations");
+    for (double bad : {-0.1, 1.5, std::numeric_limits<double>::quiet_NaN()})
+        expect_throw([&] { (void)ks::smooth_feature_bilateral(m, {.lowpass_noise = bad}); }, "lowpass_noise");
     expect_throw([&] { (void)ks::detect_sharp_features(m, {.voting_cube = 0}); }, "voting_cube");
     expect_throw([&] { (void)ks::detect_sharp_features(m, {.direction_threshold = -0.5}); }, "direction_threshold");
     CHECK(m.vertices == box.vertices);
@@ -461,6 +464,25 @@ TEST_CASE("cancellation leaves the mesh untouched") {
         const auto r = ks::smooth_feature_bilateral(m, p);
         CHECK(r.status == ks::Status::cancelled);
         CHECK(m.vertices == noisy.vertices);
+    }
+    SUBCASE("through a stop token, in the low-pass") {
+        const auto strong = ss::add_normal_noise(ss::box_mesh(10), 0.08);  // about 0.46|e|: low-pass steps run
+        auto m = strong;
+        std::stop_source stop;
+        ks::FeatureBilateralParams p;
+        p.control.stop = stop.get_token();
+        bool seen = false;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            if (std::string(e.stage) == "low-pass" && e.fraction > 0.04) {
+                seen = true;
+                stop.request_stop();
+            }
+            return true;
+        };
+        const auto r = ks::smooth_feature_bilateral(m, p);
+        CHECK(seen);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(m.vertices == strong.vertices);
     }
     SUBCASE("detection") {
         std::stop_source stop;
@@ -766,8 +788,11 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         double truth_low = 0, truth_high = 0;
         auto low = ss::add_gaussian_noise(clean, 0.1 * L0, true, 3, &truth_low);
         auto high = ss::add_gaussian_noise(clean, 0.8 * L0, true, 3, &truth_high);
-        const auto rl = ks::smooth_feature_bilateral(low);
-        const auto rh = ks::smooth_feature_bilateral(high);
+        // The automatic low-pass off: the mapping itself (with it, the filters see ~0.2|e|).
+        const auto rl = ks::smooth_feature_bilateral(low, {.lowpass_noise = 0});
+        const auto rh = ks::smooth_feature_bilateral(high, {.lowpass_noise = 0});
+        CHECK(rl.lowpass_iterations == 0);
+        CHECK(rh.lowpass_iterations == 0);
         REQUIRE(rl.noise_estimated);
         REQUIRE(rh.noise_estimated);
         CHECK(rl.noise.sigma == doctest::Approx(truth_low).epsilon(0.25));
@@ -792,20 +817,31 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         CHECK(rb.d == 0.3);
         CHECK(rb.face_iterations > 3);
         // The automatic choice equals passing the values it reports, the detection
-        // settings the strong-noise rule raised included.
-        auto c = noisy, e = noisy;
-        const auto rc = ks::smooth_feature_bilateral(c);
-        ks::FeatureBilateralParams same{.d = rc.d, .detection = rc.detection, .face_iterations = rc.face_iterations,
-                                        .normal_iterations = rc.normal_iterations};
-        CHECK(rc.strong_noise);
-        CHECK(rc.normal_iterations == 20);
-        CHECK(rc.detection.presmooth_iterations > ks::FeatureBilateralParams{}.detection.presmooth_iterations);
-        (void)ks::smooth_feature_bilateral(e, same);
-        CHECK(c.vertices == e.vertices);
+        // settings the strong-noise rule raised (low-pass off) or the low-pass steps included.
+        for (const double lowpass : {0.0, 0.2}) {
+            auto c = noisy, e = noisy;
+            const auto rc = ks::smooth_feature_bilateral(c, {.lowpass_noise = lowpass});
+            ks::FeatureBilateralParams same{.d = rc.d, .detection = rc.detection, .face_iterations = rc.face_iterations,
+                                            .normal_iterations = rc.normal_iterations,
+                                            .lowpass_iterations = rc.lowpass_iterations};
+            if (lowpass == 0) {
+                CHECK(rc.strong_noise);
+                CHECK(rc.normal_iterations == 20);
+                CHECK(rc.detection.presmooth_iterations > ks::FeatureBilateralParams{}.detection.presmooth_iterations);
+                CHECK(rc.lowpass_iterations == 0);
+            } else {
+                CHECK_FALSE(rc.strong_noise);
+                CHECK(rc.lowpass_iterations > 0);
+            }
+            const auto re = ks::smooth_feature_bilateral(e, same);
+            CHECK_FALSE(re.noise_estimated);
+            CHECK(re.lowpass_iterations == rc.lowpass_iterations);
+            CHECK(c.vertices == e.vertices);
+        }
     }
 }
 
-TEST_CASE("strong noise (0.7|e|): more normal passes and a stronger pre-smoothing for the detection") {
+TEST_CASE("strong noise (0.7|e|), low-pass off: more normal passes and a stronger pre-smoothing for the detection") {
     // Tuned on the Block (block_clean.ply = Block0.4's original); Twelve was a check before
     // adopting the rule (its threshold keeps it off at 0.5|e|, where Twelve and SharpSphere
     // lost 0.6-0.8°). Without the rule = the same d and face iterations given by hand.
@@ -817,7 +853,7 @@ TEST_CASE("strong noise (0.7|e|): more normal passes and a stronger pre-smoothin
         const double L = ks::mean_edge_length(clean);
         const auto noisy = ss::add_gaussian_noise(clean, 0.7 * L, true, 11);
         auto ours = noisy, without = noisy;
-        const auto r = ks::smooth_feature_bilateral(ours);
+        const auto r = ks::smooth_feature_bilateral(ours, {.lowpass_noise = 0});
         REQUIRE(r.strong_noise);
         CHECK(r.normal_iterations == 20);
         const auto rw = ks::smooth_feature_bilateral(without, {.d = r.d, .face_iterations = r.face_iterations});
@@ -839,12 +875,92 @@ TEST_CASE("strong noise (0.7|e|): more normal passes and a stronger pre-smoothin
             auto one = noisy;
             {
                 ks::ThreadLimit limit(1);
-                (void)ks::smooth_feature_bilateral(one);
+                (void)ks::smooth_feature_bilateral(one, {.lowpass_noise = 0});
             }
             CHECK(one.vertices == ours.vertices);
         }
         // At 0.5|e| (estimated r ≈ 0.43) the rule stays off.
         auto mid = ss::add_gaussian_noise(clean, 0.5 * L, true, 11);
-        CHECK_FALSE(ks::smooth_feature_bilateral(mid).strong_noise);
+        CHECK_FALSE(ks::smooth_feature_bilateral(mid, {.lowpass_noise = 0}).strong_noise);
+    }
+}
+
+TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the filters; 0.7|e| on the Block under 10 degrees") {
+    // The target (0.2|e|) was chosen on the Block and fertility at 0.1-0.8|e|
+    // (docs/methods/feature_bilateral.md); twelve.obj here was not used for it.
+    for (const char* name : {"block", "twelve"}) {
+        const bool block = std::string(name) == "block";
+        ks::IndexedMesh clean = ks::read_mesh(block ? test_data("block_clean.ply")
+                                                    : std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
+        clean.normals.clear();
+        const double L = ks::mean_edge_length(clean);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.7 * L, true, 11);
+        auto ours = noisy, off = noisy;
+        const auto r = ks::smooth_feature_bilateral(ours);
+        (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0});
+        CHECK(r.lowpass_iterations >= 3);
+        CHECK(r.lowpass_iterations <= 8);
+        CHECK(r.noise.sigma == doctest::Approx(0.7 * L).epsilon(0.25));  // the input's noise, reported
+        CHECK(r.noise_after_lowpass.sigma <= 0.2 * r.noise_after_lowpass.mean_edge_length);
+        CHECK(r.noise_after_lowpass.sigma > 0.1 * r.noise_after_lowpass.mean_edge_length);  // not over-smoothed
+        CHECK_FALSE(r.strong_noise);
+        double taubin = 1e9;
+        for (std::size_t it : {10, 20, 50}) {
+            auto t = noisy;
+            (void)ks::smooth_taubin(t, {}, {.iterations = it});
+            taubin = std::min(taubin, ks::denoise_metrics(t, clean).mean_normal_angle_deg);
+        }
+        const auto m = ks::denoise_metrics(ours, clean), m_off = ks::denoise_metrics(off, clean);
+        MESSAGE(name << " at 0.7|e|: " << r.lowpass_iterations << " low-pass steps, normal error " << m.mean_normal_angle_deg
+                     << " deg / rms " << m.vertex_rms / L << "|e|; low-pass off " << m_off.mean_normal_angle_deg << " / "
+                     << m_off.vertex_rms / L << "; best Taubin (10/20/50) " << taubin);
+        CHECK(m.mean_normal_angle_deg < m_off.mean_normal_angle_deg - 1.0);
+        CHECK(m.vertex_rms < m_off.vertex_rms);
+        if (block) {
+            CHECK(m.mean_normal_angle_deg < 10.0);  // issue goal: at most 10 degrees at 0.7|e| on a CAD part
+            CHECK(m.mean_normal_angle_deg < taubin);
+        }
+    }
+    SUBCASE("low noise: no step, the same bytes as with the low-pass off") {
+        const auto clean = ss::box_mesh(16);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.1 * ks::mean_edge_length(clean), true, 5);
+        auto a = noisy, b = noisy;
+        const auto ra = ks::smooth_feature_bilateral(a);
+        (void)ks::smooth_feature_bilateral(b, {.lowpass_noise = 0});
+        CHECK(ra.lowpass_iterations == 0);
+        CHECK(ra.noise_after_lowpass.sigma == ra.noise.sigma);
+        CHECK(a.vertices == b.vertices);
+    }
+    SUBCASE("steps given: run without an estimate, on any mesh type, whatever the thread count") {
+        const auto clean = ss::box_mesh(12);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.6 * ks::mean_edge_length(clean), true, 5);
+        const ks::FeatureBilateralParams p{.d = 0.14, .face_iterations = 3, .lowpass_iterations = 4};
+        auto a = noisy, one = noisy;
+        const auto ra = ks::smooth_feature_bilateral(a, p);
+        CHECK_FALSE(ra.noise_estimated);
+        CHECK(ra.lowpass_iterations == 4);
+        {
+            ks::ThreadLimit limit(1);
+            (void)ks::smooth_feature_bilateral(one, p);
+        }
+        CHECK(one.vertices == a.vertices);
+        ss::SurfaceMesh sm;
+        ks::assign_mesh(sm, noisy);
+        (void)ks::smooth_feature_bilateral(sm, p);
+        for (std::size_t v = 0; v < a.vertices.size(); ++v) REQUIRE((ks::vertex_position(sm, v) - a.vertices[v]).norm() < 1e-12);
+        // Boundary vertices stay where they are in the low-pass: an open mesh keeps its rim.
+        auto open = noisy;
+        open.faces.resize(open.faces.size() / 2);
+        auto lp = open;
+        (void)ks::smooth_feature_bilateral(lp, {.d = 0.14, .face_iterations = 0, .features = false, .lowpass_iterations = 5});
+        const ks::MeshTopology topo(open.vertices.size(), open.faces);
+        std::size_t rim = 0;
+        for (std::size_t e = 0; e < topo.num_edges(); ++e)
+            if (topo.edge_faces(e).size() == 1)
+                for (ks::Index v : topo.edges()[e]) {
+                    CHECK(lp.vertices[v] == open.vertices[v]);
+                    ++rim;
+                }
+        CHECK(rim > 0);
     }
 }

@@ -131,6 +131,7 @@
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/noise_level.hpp>
+#include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
 #include <kintsugi/smooth/sharp_feature_params.hpp>
@@ -196,6 +197,16 @@ struct FeatureBilateralParams {
     /// default straighten: measured in docs/methods/feature_bilateral.md).
     EdgeVertexMotion edge_vertex_motion = EdgeVertexMotion::straighten;
     bool separate_features = true;    ///< sharp edges bound the face filters' neighbourhoods (see above)
+    /// Taubin λ|μ steps (λ = 0.5, μ = −0.5, one-ring umbrella, boundary vertices fixed) run
+    /// on the mesh before everything else (see "Strong noise: a low-pass first" above).
+    /// Unset (default): when the noise is estimated (d or face_iterations unset), as many
+    /// as bring the estimate to `lowpass_noise`·|e| or below, at most 20 (none when it is
+    /// already there); otherwise none. Given: exactly that many. Range 0–10000.
+    std::optional<std::size_t> lowpass_iterations{};
+    /// The noise level σ/|e| an unset `lowpass_iterations` brings the mesh to. Range [0, 1];
+    /// 0 disables the automatic low-pass. Default 0.2: clean meshes read 0–0.15, and the
+    /// filters below are at their best from about there (docs/methods/feature_bilateral.md).
+    Scalar lowpass_noise = 0.2;
     RunControl control{};
 
     /// The paper's published parameters and detection (its synthetic-noise example:
@@ -218,6 +229,7 @@ struct FeatureBilateralParams {
         p.vertex_iterations = 1;
         p.edge_vertex_motion = EdgeVertexMotion::free;
         p.separate_features = false;
+        p.lowpass_noise = 0;
         return p;
     }
 };
@@ -248,6 +260,11 @@ struct FeatureBilateralResult {
     /// The detection settings used: params.detection, raised by the strong-noise rule
     /// when it applied (passing them back with d and the iteration counts repeats the run).
     SharpFeatureParams detection{};
+    /// Taubin steps of the low-pass run before the filters (0 when none ran).
+    std::size_t lowpass_iterations = 0;
+    /// The noise level after the low-pass (model units; `noise` when no step ran), from
+    /// which d, the face iterations and the strong-noise rule were set.
+    NoiseLevel noise_after_lowpass{};
 };
 
 namespace detail::fbs {
@@ -324,6 +341,41 @@ inline void raise_for_strong_noise(std::size_t& normal_iterations, SharpFeatureP
     normal_iterations = std::max<std::size_t>(normal_iterations, 20);
     detection.presmooth_iterations = std::max<std::size_t>(detection.presmooth_iterations, 6);
     detection.prefilter_scale = std::max<Scalar>(detection.prefilter_scale, 3);
+}
+
+/// Most Taubin steps an unset lowpass_iterations runs.
+inline constexpr std::size_t max_lowpass_steps = 20;
+
+/// The low-pass before the filters (see "Strong noise: a low-pass first"): `given` Taubin
+/// steps, or (unset) steps until the noise estimate `noise` (updated after each step) is
+/// at most target·|e| with |e| the current mean edge length `L`, at most
+/// max_lowpass_steps. Boundary vertices and those of non-manifold edges stay fixed.
+/// Returns the steps run; `noise` then holds the estimate after the last (unchanged
+/// when `given`: the estimate is not repeated).
+inline std::size_t lowpass(std::vector<Vec3>& V, const std::vector<Face>& F, const MeshTopology& topo,
+                           std::optional<std::size_t> given, Scalar target, NoiseLevel& noise, Scalar L,
+                           const RunControl& control, Progress& progress) {
+    // L: the mean edge length now; after each step the estimate's own (the same sum).
+    const std::size_t steps = given ? *given : max_lowpass_steps;
+    if (steps == 0 || (!given && !(noise.sigma > target * L))) return 0;
+    std::vector<std::uint8_t> movable(V.size(), 1);
+    for (std::size_t e = 0; e < topo.num_edges(); ++e)
+        if (topo.edge_faces(e).size() != 2)
+            for (Index v : topo.edges()[e]) movable[v] = 0;
+    // The Taubin steps and the estimates check for cancellation; only this loop reports.
+    const RunControl quiet_control{{}, control.stop};
+    Progress quiet(quiet_control);
+    const TaubinParams one{.iterations = 1};
+    std::size_t done = 0;
+    while (done < steps) {
+        detail::taubin_smooth(V, topo, movable, one, quiet);
+        ++done;
+        progress.update(static_cast<double>(done) / static_cast<double>(steps));
+        if (given) continue;
+        noise = detail::noise::estimate(V, F, topo, 2, quiet);
+        if (noise.sigma <= target * noise.mean_edge_length) break;  // |e| as the filters will take it
+    }
+    return done;
 }
 
 inline DataScales scales_from_noise(Scalar r) {
@@ -495,6 +547,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
     if (params.face_iterations) fbs::check_count(fn, "face_iterations", *params.face_iterations);
     fbs::check_count(fn, "normal_iterations", params.normal_iterations);
     fbs::check_count(fn, "vertex_iterations", params.vertex_iterations);
+    if (params.lowpass_iterations) fbs::check_count(fn, "lowpass_iterations", *params.lowpass_iterations);
+    fbs::check_unit(fn, "lowpass_noise", params.lowpass_noise);
     fbs::SpatialOrder so = [&] {
         const IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
         fbs::check_mesh(fn, input);
@@ -515,7 +569,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
     try {
         progress.stage("topology", 0.0, 0.02);
         const MeshTopology topo(m.vertices.size(), m.faces);
-        const Scalar L = fbs::checked_mean_edge(fn, m.vertices, topo);
+        Scalar L = fbs::checked_mean_edge(fn, m.vertices, topo);
         const std::size_t nv = m.vertices.size();
         const std::vector<unsigned char> has_face = fbs::used_vertices(m);
         std::vector<unsigned char> fixed(nv, 0);
@@ -524,17 +578,28 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             result.noise = detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
             result.noise_estimated = true;
         }
-        const fbs::DataScales auto_scales = fbs::scales_from_noise(result.noise.sigma / L);
+        result.noise_after_lowpass = result.noise;
+        if (params.lowpass_iterations || (result.noise_estimated && params.lowpass_noise > 0)) {
+            progress.stage("low-pass", 0.04, 0.1);
+            result.lowpass_iterations =
+                fbs::lowpass(m.vertices, m.faces, topo, params.lowpass_iterations, params.lowpass_noise,
+                             result.noise_after_lowpass, L, params.control, progress);
+            if (result.lowpass_iterations > 0) L = fbs::checked_mean_edge(fn, m.vertices, topo);
+        }
+        const Scalar sigma = result.noise_after_lowpass.sigma;
+        const fbs::DataScales auto_scales = fbs::scales_from_noise(sigma / L);
         result.d = params.d ? *params.d : auto_scales.d;
         result.face_iterations = params.face_iterations ? *params.face_iterations : auto_scales.face_iterations;
         result.normal_iterations = params.normal_iterations;
-        result.strong_noise = !params.face_iterations && result.noise.sigma >= fbs::strong_noise_ratio * L;
+        result.strong_noise = !params.face_iterations && sigma >= fbs::strong_noise_ratio * L;
         if (result.strong_noise) fbs::raise_for_strong_noise(result.normal_iterations, detection);
         result.detection = detection;
         result.detection.control = {};
-        result.noise.sigma = so.frame.to_world(result.noise.sigma);
-        result.noise.mean_edge_length = so.frame.to_world(result.noise.mean_edge_length);
-        result.noise.clean_edge_length = so.frame.to_world(result.noise.clean_edge_length);
+        for (NoiseLevel* n : {&result.noise, &result.noise_after_lowpass}) {
+            n->sigma = so.frame.to_world(n->sigma);
+            n->mean_edge_length = so.frame.to_world(n->mean_edge_length);
+            n->clean_edge_length = so.frame.to_world(n->clean_edge_length);
+        }
         const std::size_t face_iterations = result.face_iterations;
         const fbs::FilterSettings fs{params.a, params.b, params.c, result.d, params.edge_iterations,
                                      face_iterations, params.features, result.normal_iterations,
