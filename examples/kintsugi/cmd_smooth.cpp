@@ -3,7 +3,8 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T]
 // [--edge-iterations N] [--face-iterations N] [--no-features] [--features FEATURES.ply]
-// [--preset default|paper]`: feature-aware bilateral smoothing; the sharp edges can be
+// [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N]`: feature-aware
+// bilateral smoothing (a Taubin low-pass first under strong noise); the sharp edges can be
 // written as PLY polylines. `--preset paper` starts from the paper's published
 // parameters and detection (FeatureBilateralParams::paper()); options given win.
 #include "common.hpp"
@@ -23,8 +24,11 @@ struct SmoothOptions {
     // --d and --face-iterations: given, or left to the noise estimate (unset optionals).
     double d = 0;
     std::size_t face_iterations = 0;
+    std::size_t lowpass_iterations = 0;
     CLI::Option* d_option = nullptr;
     CLI::Option* face_iterations_option = nullptr;
+    CLI::Option* lowpass_iterations_option = nullptr;
+    CLI::Option* lowpass_noise_option = nullptr;
     std::string preset = "default";
     // The options that override a preset's values when given.
     CLI::Option *a_option = nullptr, *b_option = nullptr, *c_option = nullptr, *threshold_option = nullptr,
@@ -56,6 +60,16 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     o->face_iterations_option = cmd.add_option("--face-iterations", o->face_iterations,
                                                "Passes of the face filters (default: from the estimated noise level)")
                                     ->check(kcli::count(0, 10000));
+    o->lowpass_noise_option =
+        cmd.add_option("--lowpass-noise", p.lowpass_noise,
+                       "Noise level (sigma/|e|) down to which Taubin steps low-pass the mesh first, when the "
+                       "noise is estimated; 0 disables")
+            ->capture_default_str()
+            ->check(kcli::real(0.0, 1.0));
+    o->lowpass_iterations_option =
+        cmd.add_option("--lowpass-iterations", o->lowpass_iterations,
+                       "Taubin steps run first (default: from the estimated noise, see --lowpass-noise)")
+            ->check(kcli::count(0, 10000));
     cmd.add_option("--preset", o->preset,
                    "Starting values: default (measured, d and face iterations from the noise) or paper (the "
                    "paper's published parameters and detection); options given override them")
@@ -83,10 +97,12 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             if (o->threshold_option->count() > 0) params.detection.edge_threshold = o->params.detection.edge_threshold;
             if (o->cube_option->count() > 0) params.detection.voting_cube = o->params.detection.voting_cube;
             if (o->edge_iterations_option->count() > 0) params.edge_iterations = o->params.edge_iterations;
+            if (o->lowpass_noise_option->count() > 0) params.lowpass_noise = o->params.lowpass_noise;
         }
         params.features = !o->no_features;
         if (o->d_option->count() > 0) params.d = o->d;
         if (o->face_iterations_option->count() > 0) params.face_iterations = o->face_iterations;
+        if (o->lowpass_iterations_option->count() > 0) params.lowpass_iterations = o->lowpass_iterations;
         params.control = ctx.control("smooth");
         ctx.doing("smoothing the " + kcli::grouped(mesh.faces.size()) + " faces of " + o->input);
         const kintsugi::FeatureBilateralResult r = kintsugi::smooth_feature_bilateral(mesh, params);
@@ -124,11 +140,16 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["detection_prefilter_scale"] = r.detection.prefilter_scale;
         j["parameters"]["d_from_noise"] = !params.d.has_value();
         j["parameters"]["face_iterations_from_noise"] = !params.face_iterations.has_value();
+        j["parameters"]["lowpass_noise"] = params.lowpass_noise;
+        j["parameters"]["lowpass_iterations"] = r.lowpass_iterations;
+        j["parameters"]["lowpass_iterations_from_noise"] = !params.lowpass_iterations.has_value();
         if (r.noise_estimated) {
             j["noise"]["sigma"] = r.noise.sigma;
             j["noise"]["relative"] = r.noise.relative;
             j["noise"]["clean_edge_length"] = r.noise.clean_edge_length;
             j["noise"]["vertices_used"] = r.noise.vertices_used;
+            j["noise"]["after_lowpass"]["sigma"] = r.noise_after_lowpass.sigma;
+            j["noise"]["after_lowpass"]["relative"] = r.noise_after_lowpass.relative;
         }
         j["parameters"]["features"] = params.features;
         j["vertices"] = r.vertices;

@@ -155,6 +155,8 @@ usage "smooth --edge-threshold 2" "--edge-threshold" -- "$bin" smooth "$missing"
 usage "smooth --face-iterations -1" "--face-iterations" -- "$bin" smooth "$missing" "$work/o.ply" --face-iterations -1
 usage "smooth --features with --no-features" "--features" -- "$bin" smooth "$missing" "$work/o.ply" --features "$work/f.ply" --no-features
 usage "smooth --preset bogus" "--preset" -- "$bin" smooth "$missing" "$work/o.ply" --preset bogus
+usage "smooth --lowpass-noise 2" "--lowpass-noise" -- "$bin" smooth "$missing" "$work/o.ply" --lowpass-noise 2
+usage "smooth --lowpass-iterations -1" "--lowpass-iterations" -- "$bin" smooth "$missing" "$work/o.ply" --lowpass-iterations -1
 usage "compare --samples 100000000" "--samples" -- "$bin" compare "$missing" "$missing" --samples 100000000
 usage "compare --threshold nan" "--threshold" -- "$bin" compare "$missing" "$missing" --threshold nan
 if [ ! -e "$work/o.ply" ]; then ok; else bad "a usage error wrote an output"; fi
@@ -214,11 +216,13 @@ stderr_has "disk full message" "full.ply"
 if [ ! -e "$work/feat.ply" ]; then ok; else bad "failed smooth wrote its --features file"; fi
 expect 0 "smooth with features" -- "$bin" smooth "$mesh" "$work/sm.off" --features "$work/feat.ply" --face-iterations 1 --json
 if [ -s "$work/sm.off" ] && [ -s "$work/feat.ply" ]; then ok; else bad "smooth outputs missing"; fi
-json_check "smooth: noise estimate and the values used in --json" "j['noise']['sigma']>0 and j['noise']['vertices_used']==1839 and j['parameters']['d_from_noise'] is True and j['parameters']['d']>=0.14 and j['parameters']['face_iterations']==1 and j['parameters']['face_iterations_from_noise'] is False and j['parameters']['normal_iterations']==10 and j['parameters']['strong_noise'] is False and j['parameters']['detection_presmooth_iterations']==3"
+json_check "smooth: noise estimate and the values used in --json" "j['noise']['sigma']>0 and j['noise']['vertices_used']==1839 and j['parameters']['d_from_noise'] is True and j['parameters']['d']>=0.14 and j['parameters']['face_iterations']==1 and j['parameters']['face_iterations_from_noise'] is False and j['parameters']['normal_iterations']==10 and j['parameters']['strong_noise'] is False and j['parameters']['detection_presmooth_iterations']==3 and j['parameters']['lowpass_noise']==0.2 and j['parameters']['lowpass_iterations_from_noise'] is True and j['noise']['after_lowpass']['sigma']<=j['noise']['sigma']"
+expect 0 "smooth --lowpass-iterations 3 --lowpass-noise 0" -- "$bin" smooth "$mesh" "$work/sm5.off" --lowpass-iterations 3 --lowpass-noise 0 --face-iterations 1 --json
+json_check "smooth: the low-pass steps given" "j['parameters']['lowpass_iterations']==3 and j['parameters']['lowpass_iterations_from_noise'] is False and j['parameters']['lowpass_noise']==0"
 expect 0 "smooth with explicit d and face iterations" -- "$bin" smooth "$mesh" "$work/sm2.off" --d 0.2 --face-iterations 2 --json
 json_check "smooth: explicit values win, no estimate" "j['parameters']['d']==0.2 and j['parameters']['face_iterations']==2 and j['parameters']['d_from_noise'] is False and 'noise' not in j"
 expect 0 "smooth --preset paper" -- "$bin" smooth "$mesh" "$work/sm3.off" --preset paper --json
-json_check "smooth: the paper's values, no estimate" "j['parameters']['preset']=='paper' and j['parameters']['a']==2 and j['parameters']['c']==2 and j['parameters']['d']==0.1 and j['parameters']['face_iterations']==2 and j['parameters']['edge_threshold']==0.251 and j['parameters']['normal_iterations']==1 and 'noise' not in j"
+json_check "smooth: the paper's values, no estimate" "j['parameters']['preset']=='paper' and j['parameters']['a']==2 and j['parameters']['c']==2 and j['parameters']['d']==0.1 and j['parameters']['face_iterations']==2 and j['parameters']['edge_threshold']==0.251 and j['parameters']['normal_iterations']==1 and j['parameters']['lowpass_iterations']==0 and 'noise' not in j"
 expect 0 "smooth --preset paper --c 1 --face-iterations 1" -- "$bin" smooth "$mesh" "$work/sm4.off" --preset paper --c 1 --face-iterations 1 --json
 json_check "smooth: options given override the preset" "j['parameters']['preset']=='paper' and j['parameters']['c']==1 and j['parameters']['face_iterations']==1 and j['parameters']['d']==0.1"
 

