@@ -848,17 +848,36 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
     }
 }
 
+namespace {
+// block_clean.ply (Block0.4's original) or tests/data/twelve.obj with Gaussian noise of
+// 0.7 mean edge lengths along the normals (seed 11), and the best normal error of Taubin
+// at 10/20/50 iterations on it.
+struct StrongNoiseShape {
+    ks::IndexedMesh clean, noisy;
+    double L = 0, best_taubin = 1e9;
+};
+StrongNoiseShape strong_noise_shape(bool block) {
+    StrongNoiseShape s;
+    s.clean = ks::read_mesh(block ? test_data("block_clean.ply") : std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
+    s.clean.normals.clear();
+    s.L = ks::mean_edge_length(s.clean);
+    s.noisy = ss::add_gaussian_noise(s.clean, 0.7 * s.L, true, 11);
+    for (std::size_t it : {10, 20, 50}) {
+        auto t = s.noisy;
+        (void)ks::smooth_taubin(t, {}, {.iterations = it});
+        s.best_taubin = std::min(s.best_taubin, ks::denoise_metrics(t, s.clean).mean_normal_angle_deg);
+    }
+    return s;
+}
+}  // namespace
+
 TEST_CASE("strong noise (0.7|e|), low-pass off: more normal passes and a stronger pre-smoothing for the detection") {
     // Tuned on the Block (block_clean.ply = Block0.4's original); Twelve was a check before
     // adopting the rule (its threshold keeps it off at 0.5|e|, where Twelve and SharpSphere
     // lost 0.6-0.8°). Without the rule = the same d and face iterations given by hand.
     for (const char* name : {"block", "twelve"}) {
         const bool block = std::string(name) == "block";
-        ks::IndexedMesh clean = ks::read_mesh(block ? test_data("block_clean.ply")
-                                                    : std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
-        clean.normals.clear();
-        const double L = ks::mean_edge_length(clean);
-        const auto noisy = ss::add_gaussian_noise(clean, 0.7 * L, true, 11);
+        const auto [clean, noisy, L, taubin] = strong_noise_shape(block);
         auto ours = noisy, without = noisy;
         const auto r = ks::smooth_feature_bilateral(ours, {.lowpass_noise = 0});
         REQUIRE(r.strong_noise);
@@ -866,12 +885,6 @@ TEST_CASE("strong noise (0.7|e|), low-pass off: more normal passes and a stronge
         const auto rw = ks::smooth_feature_bilateral(without, {.d = r.d, .face_iterations = r.face_iterations});
         CHECK_FALSE(rw.strong_noise);
         CHECK(rw.normal_iterations == 10);
-        double taubin = 1e9;
-        for (std::size_t it : {10, 20, 50}) {
-            auto t = noisy;
-            (void)ks::smooth_taubin(t, {}, {.iterations = it});
-            taubin = std::min(taubin, ks::denoise_metrics(t, clean).mean_normal_angle_deg);
-        }
         const double e_ours = ks::denoise_metrics(ours, clean).mean_normal_angle_deg;
         const double e_without = ks::denoise_metrics(without, clean).mean_normal_angle_deg;
         MESSAGE(std::string(name) << " at 0.7|e|: normal error " << e_ours << " deg, without the strong-noise rule " << e_without
@@ -897,11 +910,7 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
     // (docs/methods/feature_bilateral.md); twelve.obj here was not used for it.
     SUBCASE("0.7|e| on the Block and twelve.obj") for (const char* name : {"block", "twelve"}) {
         const bool block = std::string(name) == "block";
-        ks::IndexedMesh clean = ks::read_mesh(block ? test_data("block_clean.ply")
-                                                    : std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
-        clean.normals.clear();
-        const double L = ks::mean_edge_length(clean);
-        const auto noisy = ss::add_gaussian_noise(clean, 0.7 * L, true, 11);
+        const auto [clean, noisy, L, taubin] = strong_noise_shape(block);
         auto ours = noisy, off = noisy;
         const auto r = ks::smooth_feature_bilateral(ours);
         (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0});
@@ -911,12 +920,6 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
         CHECK(r.noise_after_lowpass.sigma <= 0.2 * r.noise_after_lowpass.mean_edge_length);
         CHECK(r.noise_after_lowpass.sigma > 0.1 * r.noise_after_lowpass.mean_edge_length);  // not over-smoothed
         CHECK_FALSE(r.strong_noise);
-        double taubin = 1e9;
-        for (std::size_t it : {10, 20, 50}) {
-            auto t = noisy;
-            (void)ks::smooth_taubin(t, {}, {.iterations = it});
-            taubin = std::min(taubin, ks::denoise_metrics(t, clean).mean_normal_angle_deg);
-        }
         const auto m = ks::denoise_metrics(ours, clean), m_off = ks::denoise_metrics(off, clean);
         MESSAGE(std::string(name) << " at 0.7|e|: " << r.lowpass_iterations << " low-pass steps, normal error " << m.mean_normal_angle_deg
                      << " deg / rms " << m.vertex_rms / L << "|e|; low-pass off " << m_off.mean_normal_angle_deg << " / "
