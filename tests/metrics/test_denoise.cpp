@@ -71,22 +71,32 @@ TEST_CASE("denoise_metrics: one vertex moved") {
     CHECK(m.mean_normal_angle_deg == doctest::Approx(sum / 32).epsilon(1e-9));
 }
 
-TEST_CASE("denoise_metrics: flipped orientation is 180 degrees, degenerate faces skipped") {
+TEST_CASE("denoise_metrics: flipped orientation is 180 degrees, faces collapsed in the result 90") {
     IndexedMesh truth = fixtures::grid(2, 1);
     IndexedMesh flipped = truth;
     for (auto& v : flipped.vertices) v.z() = -v.z();
     for (auto& v : flipped.vertices) v.x() = 2 - v.x();  // mirror: every normal flips
     const auto m = ks::denoise_metrics(flipped, truth);
     CHECK(m.mean_normal_angle_deg == doctest::Approx(180.0));
-    // a degenerate face in the result is left out of the angles
-    // (vertex 4 moved onto vertex 1: faces (0,1,4) and (1,5,4) collapse, the other two
-    // keep their +z normal)
+    // a face degenerate in the result counts as 90 degrees (vertex 4 moved onto vertex 1:
+    // faces (0,1,4) and (1,5,4) collapse, the other two keep their +z normal)
     IndexedMesh collapsed = truth;
     collapsed.vertices[4] = collapsed.vertices[1];
     const auto c = ks::denoise_metrics(collapsed, truth);
-    CHECK(c.mean_normal_angle_deg == 0.0);
-    CHECK(c.max_normal_angle_deg == 0.0);
+    CHECK(c.degenerate_result_faces == 2);
+    CHECK(c.mean_normal_angle_deg == doctest::Approx(45.0));
+    CHECK(c.max_normal_angle_deg == 90.0);
     CHECK(c.vertex_rms == doctest::Approx(1.0 / std::sqrt(6.0)));
+    // a result collapsed to one point cannot score well; faces degenerate in the truth are
+    // left out (both meshes collapsed: nothing compared)
+    IndexedMesh point = truth;
+    for (auto& v : point.vertices) v = ks::Vec3(0.5, 0.5, 0);
+    const auto p = ks::denoise_metrics(point, truth);
+    CHECK(p.degenerate_result_faces == truth.faces.size());
+    CHECK(p.mean_normal_angle_deg == 90.0);
+    const auto both = ks::denoise_metrics(point, point);
+    CHECK(both.degenerate_result_faces == 0);
+    CHECK(both.mean_normal_angle_deg == 0.0);
 }
 
 TEST_CASE("denoise_metrics: bad input") {

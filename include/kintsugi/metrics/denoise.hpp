@@ -32,6 +32,9 @@ struct DenoiseMetrics {
     double mean_normal_angle_deg = 0;  ///< mean angle between corresponding face normals, degrees
     double vertex_rms = 0;             ///< sqrt(mean |p_result - p_truth|^2), mesh units
     double max_normal_angle_deg = 0;   ///< largest angle between corresponding face normals, degrees
+    /// Faces of zero area in the result whose truth face has an area: counted as 90° (a
+    /// face without a normal agrees with no direction), so a collapsed result cannot score well.
+    std::size_t degenerate_result_faces = 0;
 };
 
 namespace detail {
@@ -89,9 +92,10 @@ inline DenoiseMetrics denoise_metrics(const IndexedMesh& r, const IndexedMesh& t
     for (const Face& f : r.faces) {
         const Vec3 a = normal(r, f), b = normal(t, f);
         const double la = a.norm(), lb = b.norm();
-        if (!(la > 0) || !(lb > 0)) continue;  // degenerate face: no normal to compare
+        if (!(lb > 0)) continue;  // degenerate in the truth: no normal to compare with
         // atan2 of |a x b| and a.b is accurate for small angles, unlike acos.
-        const double angle = std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / std::numbers::pi;
+        const double angle = la > 0 ? std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / std::numbers::pi : 90.0;
+        m.degenerate_result_faces += !(la > 0);
         sum += angle;
         m.max_normal_angle_deg = std::max(m.max_normal_angle_deg, angle);
         ++counted;
@@ -105,7 +109,8 @@ inline DenoiseMetrics denoise_metrics(const IndexedMesh& r, const IndexedMesh& t
 /// @brief Mean and max angle between corresponding face normals (degrees) and the
 /// RMS of vertex displacements between a denoised mesh and its ground truth.
 ///
-/// Faces that are degenerate (zero area) in either mesh are left out of the angles.
+/// Faces that are degenerate (zero area) in the truth are left out of the angles; a face
+/// degenerate in the result only counts as 90° (`degenerate_result_faces` says how many).
 /// Orientation counts: a flipped face measures 180 degrees.
 /// @tparam A a type modelling TriangleMesh (the result)
 /// @tparam B a type modelling TriangleMesh (the truth)
