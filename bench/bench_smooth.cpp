@@ -41,6 +41,12 @@
 //   smooth_shape swept in |e|^2 (best_smooth_shape): Block0.4 13.48/0.415 (0.1x3),
 //   SharpSphere0.3 11.84/0.387 (0.3x1), Twelve0.5Imp. 9.73/0.252 (0.1x3). The noise table with
 //   its smooth_shape column and the strong-noise rule: 569 s wall at load 5-8 (README).
+// 2026-12-03 (a faster 2-core VM, idle; with the Taubin low-pass under strong noise, which the
+//   speed mesh does not trigger: its uniform 0.3|e| noise reads 0.17|e|): 589,824 faces 2.76-3.88 s
+//   wall, 5.1-6.7 s CPU over three runs (noise level 0.17 s, features 1.28-1.86 s, face smoothing
+//   1.13-1.24 s); Taubin(30) 0.22 s; peak growth 165 / 640 MB at 147K / 590K faces (x3.87).
+//   Pairs: Block0.4 4.81/0.138 (features=false 7.31), SharpSphere0.3 7.56/0.146 (7.02),
+//   Twelve0.5Imp. 7.67/0.147. Noise table (seven shapes, three held out): 261 s wall (README).
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
