@@ -102,6 +102,8 @@
 /// Explicit values are used as given and skip the estimate; the estimate and the
 /// values used are in the result (`noise`, `d`, `face_iterations`). Measurements in
 /// docs/methods/feature_bilateral.md.
+/// (With the low-pass below, r is the noise after it, about 0.2 or less: this mapping and
+/// the strong-noise rule act when the low-pass is off or stops at its 20 steps.)
 /// Strong noise (face_iterations unset and r ≥ 0.47, about 0.7|e| of Gaussian noise and
 /// above): at least 20 filter-3 passes per face iteration (instead of 10), and the
 /// detection's pre-smoothing with at least 6 passes (3) and c = 3 for its normal filter
@@ -257,7 +259,7 @@ struct FeatureBilateralResult {
     std::size_t vertices = 0, faces = 0;
     std::size_t feature_vertices = 0;  ///< vertices on sharp edges (moved by filters 1–2)
     std::size_t degenerate_faces = 0;  ///< faces of zero area in the input
-    /// "topology", "noise level" (when estimated), "low-pass" (when it may run), "features",
+    /// "topology", "noise level" (when estimated), "low-pass" (when a step runs), "features",
     /// "edge smoothing", "face smoothing", "edge straightening" (EdgeVertexMotion::straighten
     /// with sharp edges found)
     std::vector<StageTiming> timings;
