@@ -804,7 +804,11 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         CHECK(rl.noise.sigma == doctest::Approx(truth_low).epsilon(0.25));
         CHECK(rh.noise.sigma == doctest::Approx(truth_high).epsilon(0.25));
         CHECK(rl.d == 0.14);  // low noise: the measured default
-        CHECK(rl.face_iterations == 3);
+        CHECK(rl.face_iterations == 2);  // 0.1|e|: two face iterations (three from 0.125|e|)
+        auto clean_copy = clean;  // clean: one iteration, and the box stays a box
+        const auto rc0 = ks::smooth_feature_bilateral(clean_copy);
+        CHECK(rc0.face_iterations == 1);
+        CHECK(ks::denoise_metrics(clean_copy, clean).mean_normal_angle_deg < 0.5);
         CHECK(rh.d > 0.2);  // strong noise: a wider range, more passes
         CHECK(rh.face_iterations > 3);
         CHECK(rh.face_iterations <= 8);
