@@ -368,18 +368,16 @@ inline void raise_for_strong_noise(std::size_t& normal_iterations, SharpFeatureP
 /// Most Taubin steps an unset lowpass_iterations runs.
 inline constexpr std::size_t max_lowpass_steps = 20;
 
-/// The low-pass before the filters (see "Strong noise: a low-pass first"): `given` Taubin
-/// steps, or (unset) steps until the noise estimate `noise` (updated after each step) is
-/// at most target·|e| with |e| the current mean edge length `L`, at most
-/// max_lowpass_steps. Boundary vertices and those of non-manifold edges stay fixed.
-/// Returns the steps run; `noise` then holds the estimate after the last (unchanged
-/// when `given`: the estimate is not repeated).
+/// The low-pass before the filters (see "Strong noise: a low-pass first"), called when at
+/// least one step is to run: `given` Taubin steps, or (unset) steps until the noise
+/// estimate `noise` (updated after each step) is at most target·|e| with |e| the
+/// low-passed mesh's mean edge length, at most max_lowpass_steps. Boundary vertices and
+/// those of non-manifold edges stay fixed. Returns the steps run; `noise` then holds the
+/// estimate after the last (unchanged when `given`: the estimate is not repeated).
 inline std::size_t lowpass(std::vector<Vec3>& V, const std::vector<Face>& F, const MeshTopology& topo,
-                           std::optional<std::size_t> given, Scalar target, NoiseLevel& noise, Scalar L,
+                           std::optional<std::size_t> given, Scalar target, NoiseLevel& noise,
                            const RunControl& control, Progress& progress) {
-    // L: the mean edge length now; after each step the estimate's own (the same sum).
     const std::size_t steps = given ? *given : max_lowpass_steps;
-    if (steps == 0 || (!given && !(target > 0 && noise.sigma > target * L))) return 0;
     std::vector<std::uint8_t> movable(V.size(), 1);
     for (std::size_t e = 0; e < topo.num_edges(); ++e)
         if (topo.edge_faces(e).size() != 2)
@@ -611,8 +609,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             progress.stage("low-pass", 0.04, 0.1);
             result.lowpass_iterations =
                 fbs::lowpass(m.vertices, m.faces, topo, params.lowpass_iterations, params.lowpass_noise,
-                             result.noise_after_lowpass, L, params.control, progress);
-            if (result.lowpass_iterations > 0) L = fbs::checked_mean_edge(fn, m.vertices, topo);
+                             result.noise_after_lowpass, params.control, progress);
+            L = fbs::checked_mean_edge(fn, m.vertices, topo);
         }
         const Scalar sigma = result.noise_after_lowpass.sigma;
         const fbs::DataScales auto_scales = fbs::scales_from_noise(sigma / L);
