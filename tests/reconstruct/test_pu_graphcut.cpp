@@ -184,6 +184,58 @@ TEST_CASE("reconstruct_pu_graphcut: step 8 on data denser than their noise widen
     CHECK(mf <= mc);
 }
 
+TEST_CASE("reconstruct_pu_graphcut: step 8's group means are unbiased along the normal and keep thin walls apart") {
+    // A tilted plane sampled on a jittered grid of spacing s with Gaussian noise sigma =
+    // s / 2 in every direction; groups of side h = 2 s. A cube cut through the noisy slab
+    // is biased along the normal; a column is not, so the means' offsets from the plane
+    // average to about 0 and their spread is about sigma / sqrt(group size).
+    const ks::Vec3 n = ks::Vec3(1, 2, 3).normalized();
+    const ks::Vec3 t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+    const double s = 0.01, sigma = 0.5 * s, h = 2 * s;
+    std::mt19937_64 rng(5);
+    std::normal_distribution<double> g(0, 1);
+    std::uniform_real_distribution<double> u(-0.5, 0.5);
+    std::vector<ks::Vec3> pts, nrm;
+    for (int i = 0; i < 200; ++i)
+        for (int j = 0; j < 200; ++j) {
+            pts.push_back((i + u(rng)) * s * t1 + (j + u(rng)) * s * t2 + sigma / std::sqrt(3.0) * ks::Vec3(g(rng), g(rng), g(rng)));
+            nrm.push_back(n);
+        }
+    const auto [means, mn] = ks::detail::column_means(pts, nrm, h);
+    REQUIRE(means.size() == mn.size());
+    const double per_group = static_cast<double>(pts.size()) / static_cast<double>(means.size());
+    double sum = 0, sum2 = 0;
+    for (std::size_t i = 0; i < means.size(); ++i) {
+        const double d = n.dot(means[i]);
+        sum += d;
+        sum2 += d * d;
+        CHECK(mn[i].isApprox(n));
+    }
+    const double mean = sum / static_cast<double>(means.size());
+    const double rms = std::sqrt(sum2 / static_cast<double>(means.size()));
+    const double sigma_n = sigma / std::sqrt(3.0);  // the noise along the normal
+    MESSAGE("column means: " << means.size() << " groups of " << per_group << " samples; offset mean " << mean / sigma_n
+                             << " sigma, rms " << rms / sigma_n << " sigma");
+    CHECK(per_group > 3);
+    CHECK(per_group < 12);
+    CHECK(std::abs(mean) < 0.02 * sigma_n);
+    CHECK(rms < 1.3 * sigma_n / std::sqrt(per_group));
+
+    // Two sides of a thin wall, 0.3 h apart with opposite normals: no mean between them.
+    std::vector<ks::Vec3> wall, wn;
+    for (int i = 0; i < 100; ++i)
+        for (int j = 0; j < 100; ++j)
+            for (int side = 0; side < 2; ++side) {
+                wall.push_back(ks::Vec3((i + u(rng)) * s, (j + u(rng)) * s, side * 0.3 * h));
+                wn.push_back(ks::Vec3(0, 0, side ? 1 : -1));
+            }
+    const auto [wm, wmn] = ks::detail::column_means(wall, wn, h);
+    for (std::size_t i = 0; i < wm.size(); ++i) {
+        const bool top = wmn[i].z() > 0;
+        CHECK(std::abs(wm[i].z() - (top ? 0.3 * h : 0.0)) < 1e-12);
+    }
+}
+
 TEST_CASE("reconstruct_pu_graphcut: a second object 20x smaller, sampled with the part and 10 % outliers, is kept") {
     // The torus (20K points, 0.1 % noise) and a sphere of radius 0.07 (3,000 points, the
     // same noise in absolute terms), 0.8 beyond the torus, plus 10 % uniform outliers over

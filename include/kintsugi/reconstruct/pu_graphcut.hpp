@@ -138,8 +138,9 @@ struct PUGraphcutParams {
     /// twice the vertices and time (docs/methods/pu_graphcut.md).
     Scalar refine_spacing = 1.5;
     /// Neighbours of the MLS fit of step 8 (kintsugi::PointSetSurfaceParams::k): more
-    /// average more noise and flatten more detail. >= 4; default 20. The least number:
-    /// data denser than their noise take more (PUGraphcutResult::refine_neighbors_used).
+    /// average more noise and flatten more detail. >= 4; default 20. Data denser than
+    /// their noise are first averaged in groups so that each fit spans more samples
+    /// (PUGraphcutResult::refine_neighbors_used).
     std::size_t refine_neighbors = 20;
 };
 
@@ -182,11 +183,14 @@ struct PUGraphcutResult {
     std::size_t refined_vertices = 0;
     /// Step 8's noise estimate: the standard deviation of the inliers' offsets along their
     /// normals from their 8 neighbours' centroid, over their median spacing (the largest
-    /// over the parts; 0 when step 8 did not run). Above about 0.22 the MLS fit takes more than refine_neighbors points.
+    /// over the parts; 0 when step 8 did not run). Above about 0.22 each MLS fit spans more
+    /// than refine_neighbors samples.
     Scalar refine_noise_ratio = 0;
-    /// The neighbours step 8's MLS fit used: refine_neighbors, or (20 x refine_noise_ratio)^2
-    /// for data denser than their noise, at most 16 x refine_neighbors (the largest over
-    /// the parts; 0 when step 8 did not run).
+    /// The input samples each MLS fit of step 8 spans: refine_neighbors, or, for data
+    /// denser than their noise, (20 x refine_noise_ratio)^2, at most 16 x refine_neighbors:
+    /// the inliers are then averaged in groups of about that / refine_neighbors and the fit
+    /// takes refine_neighbors of the means (the largest over the parts; 0 when step 8 did
+    /// not run).
     std::size_t refine_neighbors_used = 0;
 };
 
@@ -317,7 +321,8 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
 /// the surface is smooth. It is refined by edge splits and Delaunay flips until its
 /// edges are about refine_spacing times the local sample spacing, and every vertex
 /// with data near it is moved onto the MLS surface (APSS) of the input points near the
-/// field's zero set (the outliers far from it are left out); hole fills are re-faired
+/// field's zero set (the outliers far from it are left out; data denser than their
+/// noise averaged in small groups first); hole fills are re-faired
 /// between them. The labelling keeps the topology (no edge is collapsed). See
 /// docs/methods/pu_graphcut.md for the measurements.
 ///
