@@ -103,14 +103,39 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
     for (auto c : rt.finite_cell_handles())
         out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
                             vertex_of[c->vertex(2)->info()], vertex_of[c->vertex(3)->info()]});
-    out.edges.reserve(rt.number_of_finite_edges());
-    for (auto it = rt.finite_edges_begin(); it != rt.finite_edges_end(); ++it) {
-        Index a = vertex_of[it->first->vertex(it->second)->info()];
-        Index b = vertex_of[it->first->vertex(it->third)->info()];
-        if (a > b) std::swap(a, b);
-        out.edges.push_back({a, b});
+    rt.clear();  // the triangulation's cells are the stage's largest memory
+    std::vector<Index>().swap(vertex_of);
+    // Edges from the tets' vertex pairs, gathered per smaller vertex (a counting sort),
+    // then sorted and made unique per vertex: the same sorted list as CGAL's finite-edge
+    // iterator gives, which circulates around each edge from every cell to report it once
+    // (6.2 of 11.3 s for 945K sites on a sphere's shell, this way 0.8 s).
+    {
+        constexpr std::array<std::array<int, 2>, 6> pair{{{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
+        const std::size_t nv = alive.size();
+        std::vector<std::size_t> start(nv + 1, 0);
+        for (const Tet& t : out.tets)
+            for (const auto& e : pair) ++start[std::min(t[std::size_t(e[0])], t[std::size_t(e[1])]) + 1];
+        std::partial_sum(start.begin(), start.end(), start.begin());
+        std::vector<Index> other(start[nv]);
+        {
+            std::vector<std::size_t> at(start.begin(), start.end() - 1);
+            for (const Tet& t : out.tets)
+                for (const auto& e : pair) {
+                    const Index a = t[std::size_t(e[0])], b = t[std::size_t(e[1])];
+                    other[at[std::min(a, b)]++] = std::max(a, b);
+                }
+        }
+        std::vector<std::size_t> kept(nv);
+        parallel_for(0, nv, [&](std::size_t v) {
+            const auto b = other.begin() + static_cast<std::ptrdiff_t>(start[v]);
+            const auto e = other.begin() + static_cast<std::ptrdiff_t>(start[v + 1]);
+            std::sort(b, e);
+            kept[v] = static_cast<std::size_t>(std::unique(b, e) - b);
+        }, 1024);
+        out.edges.reserve(std::accumulate(kept.begin(), kept.end(), std::size_t{0}));
+        for (Index v = 0; v < nv; ++v)
+            for (std::size_t j = 0; j < kept[v]; ++j) out.edges.push_back({v, other[start[v] + j]});
     }
-    std::sort(out.edges.begin(), out.edges.end());
     progress.update(p0 + (p1 - p0) * 0.95);
     // Tets sorted too: the output mesh then depends only on the triangulation itself.
     for (auto& t : out.tets) {
