@@ -58,7 +58,26 @@
 // pu_cover 9.07, pu_index 0.58, triangulation 16.26, graph_cut 3.10, marching_tetrahedra
 // 1.72, smoothing 0.18, handles 0.11, refine 28.29. Step 8 has since widened its fit for
 // data denser than their noise (docs/methods/pu_graphcut.md: the CLI on the same recipe,
-// 89 neighbours, mean 0.0090 %, refine 59 s); not yet re-run here.
+// 89 neighbours, mean 0.0090 %, refine 59 s).
+// 2026-12-04 00:34-01:10 UTC, idle VM: before (k = 89 raw samples per fit): 2M 69.8 s wall /
+// 101.1 s CPU, 2.27 GB, mean 0.0089 %, Hausdorff 1.03 %, truth to result 0.0083 %; stages
+// pu_octree 6.27, pu_cover 8.81, pu_index 0.68, triangulation 14.42, graph_cut 5.09,
+// marching_tetrahedra 1.60, smoothing 0.20, handles 0.07, refine 31.45. After (step 8 fits
+// k = 20 means of groups of noisy samples, its noise estimate from at most 2^18 inliers; the
+// triangulation's edges taken from its tets): 2M 31.4 s wall / 42.8 s CPU, 2.05 GB, mean
+// 0.0093 %, Hausdorff 0.84 %, truth to result 0.0087 %, area ratio 1.005; stages pu_octree
+// 5.28, pu_cover 7.48, pu_index 0.54, triangulation 6.66, graph_cut 4.40,
+// marching_tetrahedra 1.31, smoothing 0.10, handles 0.05, refine 4.65. 100K unchanged
+// in output: 2.51 s wall / 3.42 s CPU, 190 MB, mean 0.0164 %, triangulation 0.47 s.
+// Then with groups of one sample dropped (isolated outliers): 2M 31.1 s / 42.1 s, 2.05 GB,
+// mean 0.0081 %, Hausdorff 0.632 %, truth to result 0.0082 %, area ratio 1.002; stages
+// pu_octree 5.35, pu_cover 8.09, pu_index 0.55, triangulation 6.47, graph_cut 4.25,
+// marching_tetrahedra 1.23, smoothing 0.12, handles 0.05, refine 4.02. 10M 153.0 s / 204.5 s,
+// 8.1 GB, mean 0.0079 %, Hausdorff 1.039 %, truth to result 0.0079 %, area ratio 1.008;
+// stages (wall s / peak MB) pu_octree 40.51 / 7273, pu_cover 36.81 / 5620, pu_index 1.61 /
+// 5590, triangulation 24.98 / 5530, graph_cut 16.84 / 6319, marching_tetrahedra 3.37 /
+// 8098, smoothing 0.18 / 6722, handles 0.10 / 6304, refine 24.02 / 6304 (without step 8:
+// mean 0.0119 %, Hausdorff 0.682 %).
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff

@@ -234,6 +234,20 @@ TEST_CASE("reconstruct_pu_graphcut: step 8's group means are unbiased along the 
         const bool top = wmn[i].z() > 0;
         CHECK(std::abs(wm[i].z() - (top ? 0.3 * h : 0.0)) < 1e-12);
     }
+
+    // An isolated sample (an outlier that passed the inlier test) is a group of one: kept
+    // with min_count 1, dropped with 2, while the plane's groups stay.
+    std::vector<ks::Vec3> lone = pts, lone_n = nrm;
+    lone.push_back(ks::Vec3(5, 5, 5));
+    lone_n.push_back(n);
+    const auto with1 = ks::detail::column_means(lone, lone_n, h, 1).first;
+    const auto with2 = ks::detail::column_means(lone, lone_n, h, 2).first;
+    const auto far = [](const std::vector<ks::Vec3>& v) {
+        return std::count_if(v.begin(), v.end(), [](const ks::Vec3& p) { return p.norm() > 5; });
+    };
+    CHECK(far(with1) == 1);
+    CHECK(far(with2) == 0);
+    CHECK(with2.size() > with1.size() * 3 / 4);
 }
 
 TEST_CASE("reconstruct_pu_graphcut: a second object 20x smaller, sampled with the part and 10 % outliers, is kept") {
