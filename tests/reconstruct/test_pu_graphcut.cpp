@@ -248,6 +248,12 @@ TEST_CASE("reconstruct_pu_graphcut: step 8's group means are unbiased along the 
     CHECK(far(with1) == 1);
     CHECK(far(with2) == 0);
     CHECK(with2.size() > with1.size() * 3 / 4);
+
+    // A side too small for 64-bit cell coordinates: every sample is its own group.
+    const auto tiny = ks::detail::column_means(pts, nrm, 1e-300);
+    CHECK(tiny.first.size() == pts.size());
+    CHECK(tiny.first[7] == pts[7]);
+    CHECK(ks::detail::column_means(pts, nrm, 1e-300, 2).first.empty());
 }
 
 TEST_CASE("reconstruct_pu_graphcut: a second object 20x smaller, sampled with the part and 10 % outliers, is kept") {

@@ -322,6 +322,18 @@ inline std::pair<std::vector<Vec3>, std::vector<Vec3>> column_means(const std::v
                                                                       std::size_t min_count = 1) {
     BoundingBox box;
     for (const Vec3& p : pts) box.extend(p);
+    // Cell coordinates must fit in 64 bits: otherwise (h below 2^-50 of the extent) every
+    // sample is its own group.
+    if (!(h > 0) || !(box.extent().maxCoeff() / h < Scalar(1125899906842624))) {
+        std::pair<std::vector<Vec3>, std::vector<Vec3>> all{{}, {}};
+        if (min_count > 1) return all;
+        for (std::size_t i = 0; i < pts.size(); ++i)
+            if (normals[i].squaredNorm() > 0) {
+                all.first.push_back(pts[i]);
+                all.second.push_back(normals[i].normalized());
+            }
+        return all;
+    }
     struct Keyed {
         std::array<std::int64_t, 3> column;  // signed axis, then the two cell coordinates
         Scalar along;                        // the coordinate along the axis
@@ -485,6 +497,9 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
                     ip = std::move(ap);
                     in = std::move(an);
                     mls.emplace(with_normals(ip, in), PointSetSurfaceParams{.k = k, .tolerance = 1e-3});
+                } else {
+                    // Too few groups to fit (a small, noisy part): k2 raw samples per fit.
+                    mls.emplace(with_normals(ip, in), PointSetSurfaceParams{.k = k2, .tolerance = 1e-3});
                 }
             }
         }
