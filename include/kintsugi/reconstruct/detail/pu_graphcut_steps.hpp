@@ -437,15 +437,6 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
     // of itself and its 8 nearest inliers.
     constexpr std::size_t ring = 8;
     const Scalar disk = std::sqrt(Scalar(3.14159265358979323846) / ring);
-    std::vector<Scalar> sq;  // per fit sample
-    const auto spacing_of = [&](const KdTree& t) {
-        sq.assign(ip.size(), 0);
-        parallel_for(0, ip.size(), [&](std::size_t i) {
-            thread_local std::vector<Neighbor> nb;
-            t.knn(ip[i], ring + 1, nb);
-            sq[i] = std::sqrt(nb.back().squared_distance) * disk;
-        }, 1024);
-    };
     // The noise and the median spacing from every stride-th inlier, at most 2^18 of them
     // (a median's error is then below 0.3 %; all of them up to 262,144 inliers).
     const std::size_t stride = (ip.size() + 262143) / 262144;
@@ -461,6 +452,7 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
         off[j] = std::abs(in[i].normalized().dot(ip[i] - c / static_cast<Scalar>(nb.size())));
     }, 1024);
     stats.neighbors = k;
+    bool grouped = false;
     {
         // Data denser than their noise: a fit over k neighbours keeps about sigma / sqrt(k)
         // of it whatever the density, so it must span about k2 = (20 sigma / s)^2 samples
@@ -476,7 +468,7 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
         // instead of 1.15M. At 100K points sigma = 0.2 s and clean data sigma < 0.03 s keep
         // the inliers as they are.
         const Scalar sigma = upper_median(std::move(off)) / Scalar(0.6745) * Scalar(1.0606601717798212);
-        const Scalar s_med = upper_median(std::move(s_est));
+        const Scalar s_med = upper_median(s_est);
         if (s_med > 0) {
             stats.noise_ratio = sigma / s_med;
             const Scalar want = std::ceil(Scalar(400) * (sigma / s_med) * (sigma / s_med));
@@ -496,6 +488,7 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
                 if (ap.size() >= std::max<std::size_t>(2 * k, 16)) {
                     ip = std::move(ap);
                     in = std::move(an);
+                    grouped = true;
                     mls.emplace(with_normals(ip, in), PointSetSurfaceParams{.k = k, .tolerance = 1e-3});
                 } else {
                     // Too few groups to fit (a small, noisy part): k2 raw samples per fit.
@@ -505,7 +498,18 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
         }
     }
     const KdTree& tree = mls->tree();
-    spacing_of(tree);
+    // The spacing of every fit sample: the estimate's own when it read all of them.
+    std::vector<Scalar> sq;
+    if (!grouped && stride == 1) {
+        sq = std::move(s_est);
+    } else {
+        sq.resize(ip.size());
+        parallel_for(0, ip.size(), [&](std::size_t i) {
+            thread_local std::vector<Neighbor> nb;
+            tree.knn(ip[i], ring + 1, nb);
+            sq[i] = std::sqrt(nb.back().squared_distance) * disk;
+        }, 1024);
+    }
     progress.update(0.1);
     // 3. Split and flip.
     const std::size_t nv0 = mesh.vertices.size();
