@@ -154,6 +154,7 @@
 #include <kintsugi/mesh/noise_level.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
+#include <kintsugi/smooth/detail/coplanar_creases.hpp>
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
 #include <kintsugi/smooth/sharp_feature_params.hpp>
 #include <kintsugi/spatial/morton.hpp>
@@ -178,6 +179,12 @@ struct SharpFeatures {
     std::vector<std::array<Index, 2>> sharp_edges;  ///< vertex pairs (a < b), sorted
     std::size_t candidate_vertices = 0;             ///< vertices with s_i >= edge_threshold
     Scalar mean_edge_length = 0;                    ///< |e| of the input, model units
+    /// Faces lying exactly in the plane of another face near them (impulsive noise leaves
+    /// them; 0 under Gaussian noise), and the sharp edges their planes explain, counted
+    /// whether or not the voting tensor found them too (SharpFeatureParams::coplanar_creases;
+    /// "Impulsive noise" in the file comment).
+    std::size_t anchored_faces = 0;
+    std::size_t coplanar_sharp_edges = 0;
 };
 
 /// Result of detect_sharp_features().
@@ -243,7 +250,8 @@ struct FeatureBilateralParams {
         p.c = 2;
         p.d = 0.1;
         p.detection = {.voting_cube = 3, .edge_threshold = 0.251, .direction_threshold = 0.9,
-                       .prefilter_iterations = 0, .crease_test = false, .presmooth_iterations = 0};
+                       .prefilter_iterations = 0, .crease_test = false, .presmooth_iterations = 0,
+                       .coplanar_creases = false};
         p.edge_iterations = 2;
         p.face_iterations = 2;
         p.normal_iterations = 1;
@@ -338,14 +346,28 @@ inline std::vector<unsigned char> used_vertices(const IndexedMesh& m) {
 /// The detection shared by both public functions.
 inline FeatureData run_detection(const IndexedMesh& m, const MeshTopology& topo, Scalar L,
                                  const std::vector<unsigned char>& has_face, const SharpFeatureParams& p,
-                                 Progress& progress, Workspace& ws) {
+                                 Progress& progress, Workspace& ws, const CoplanarCreases* coplanar = nullptr) {
     FilterSettings pre;
     pre.c = p.prefilter_scale;
     pre.d = p.presmooth_range;
     pre.normal_iterations = std::max<std::size_t>(p.prefilter_iterations, 1);
     pre.vertex_c = p.presmooth_vertex_scale;
-    return detect_features_presmoothed(m.vertices, m.faces, topo, L, p, pre, p.presmooth_iterations, has_face,
-                                       progress, ws);
+    FeatureData fd = detect_features_presmoothed(m.vertices, m.faces, topo, L, p, pre, p.presmooth_iterations,
+                                                 has_face, progress, ws);
+    if (coplanar) apply_coplanar(fd, *coplanar, topo);
+    return fd;
+}
+
+/// The coplanar-crease stage on the mesh as given (before any smoothing), when enabled;
+/// its own progress stage.
+inline std::optional<CoplanarCreases> run_coplanar(const IndexedMesh& m, const MeshTopology& topo, Scalar L,
+                                                   const SharpFeatureParams& p, Progress& progress, double from,
+                                                   double to) {
+    if (!p.coplanar_creases) return std::nullopt;
+    progress.stage("coplanar creases", from, to);
+    // The crease angle implied by the threshold, as in the voting tensor's crease test.
+    const Scalar crease_cos = std::cos(2 * std::atan(std::sqrt(p.edge_threshold)));
+    return coplanar_creases(m.vertices, m.faces, topo, L, crease_cos, progress, 0.0, 1.0);
 }
 
 /// The face filter's range scale and iteration count set from the noise level
@@ -410,7 +432,7 @@ inline DataScales scales_from_noise(Scalar r) {
 
 inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
     return {std::move(fd.strength), std::move(fd.eigenvalues), std::move(fd.eigenvectors),
-            std::move(fd.sharp_edges), fd.candidate_vertices, L};
+            std::move(fd.sharp_edges), fd.candidate_vertices, L, fd.anchored_faces, fd.coplanar_sharp_edges};
 }
 
 /// The mesh with vertices and faces renumbered along a Morton curve (ties by index), so
@@ -528,9 +550,11 @@ template <TriangleMesh M>
         progress.stage("topology", 0.0, 0.05);
         const MeshTopology topo(m.vertices.size(), m.faces);
         const Scalar L = detail::fbs::checked_mean_edge(fn, m.vertices, topo);
-        progress.stage("features", 0.05, 1.0);
+        const auto coplanar = detail::fbs::run_coplanar(m, topo, L, params, progress, 0.05, 0.1);
+        progress.stage("features", 0.1, 1.0);
         detail::fbs::Workspace ws;
-        auto fd = detail::fbs::run_detection(m, topo, L, detail::fbs::used_vertices(m), params, progress, ws);
+        auto fd = detail::fbs::run_detection(m, topo, L, detail::fbs::used_vertices(m), params, progress, ws,
+                                             coplanar ? &*coplanar : nullptr);
         result.features = detail::fbs::to_public(std::move(fd), so.frame.to_world(L));
         detail::fbs::restore_order(result.features, so.order);
         result.timings = progress.finish();
@@ -597,8 +621,11 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         const std::size_t nv = m.vertices.size();
         const std::vector<unsigned char> has_face = fbs::used_vertices(m);
         std::vector<unsigned char> fixed(nv, 0);
+        // On the input, before the low-pass moves the vertices impulsive noise left in place.
+        const auto coplanar = params.features ? fbs::run_coplanar(m, topo, L, detection, progress, 0.02, 0.03)
+                                              : std::nullopt;
         if (!params.d || !params.face_iterations) {
-            progress.stage("noise level", 0.02, 0.04);
+            progress.stage("noise level", 0.03, 0.04);
             result.noise = detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
             result.noise_estimated = true;
         }
@@ -636,7 +663,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         std::vector<Index> final_vertices;
         if (params.features) {
             progress.stage("features", 0.04, 0.45);
-            auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress, ws);
+            auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress, ws,
+                                         coplanar ? &*coplanar : nullptr);
             std::vector<unsigned char> on_edge(nv, 0);
             for (const auto& e : fd.sharp_edges) on_edge[e[0]] = on_edge[e[1]] = 1;
             std::vector<Index> edge_vertices;

@@ -42,6 +42,12 @@ struct SharpFeatureParams {
     /// Spatial scale c of the pre-smoothing's vertex filter (its normal filter uses
     /// prefilter_scale), in mean edge lengths.
     Scalar presmooth_vertex_scale = 1;
+    /// true: where faces that impulsive noise left exactly in the part's planes are near an
+    /// edge, the edge is sharp when a pair of those planes at least 2·atan(√edge_threshold)
+    /// apart explains it, whatever the voting tensor says ("Impulsive noise" in
+    /// smooth/feature_bilateral.hpp; Twelve0.5Impulsive recall 0.02 → 0.85). Inert without
+    /// such faces (Gaussian noise, scans). false = the paper.
+    bool coplanar_creases = true;
     RunControl control{};
 };
 

@@ -413,6 +413,8 @@ struct FeatureData {
     std::vector<std::array<Vec3, 3>> eigenvectors;  // e1, e2, e3
     std::vector<std::array<Index, 2>> sharp_edges;  // vertex pairs, a < b, sorted
     std::size_t candidate_vertices = 0;
+    std::size_t anchored_faces = 0;          // coplanar_creases.hpp
+    std::size_t coplanar_sharp_edges = 0;
 };
 
 /// Normal voting tensor of every vertex (Sun et al. 2002), its eigen-analysis, the
