@@ -255,26 +255,6 @@ void accuracy_table() {
 // (rms of the displacements along the normals), both in clean |e|. The last three shapes
 // (CGAL's mech-holes-shark, armadillo, bunny00) were never used to choose a default. Run
 // alone with --benchmark_filter=noise_table.
-ks::IndexedMesh add_impulsive_noise(const ks::IndexedMesh& m, double sigma, std::uint32_t seed, double* rms) {
-    // The Gaussian generator on every vertex, then only 10 % of the moves kept.
-    double all = 0;
-    const auto moved = ss::add_gaussian_noise(m, sigma, true, seed, &all);
-    ks::IndexedMesh out = m;
-    out.normals.clear();
-    const auto n = ks::vertex_normals(m);
-    std::uint32_t x = seed * 2654435761u;
-    double acc = 0;
-    for (std::size_t v = 0; v < m.vertices.size(); ++v) {
-        x = x * 1664525u + 1013904223u;
-        if ((x >> 8) % 10 != 0) continue;
-        out.vertices[v] = moved.vertices[v];
-        const double d = (moved.vertices[v] - m.vertices[v]).dot(n[v]);
-        acc += d * d;
-    }
-    *rms = std::sqrt(acc / double(m.vertices.size()));
-    return out;
-}
-
 void BM_noise_table(benchmark::State& state) {
     const fs::path shared = fs::path(KINTSUGI_SHARED_DATA_DIR);
     const std::vector<std::pair<const char*, fs::path>> shapes = {
@@ -300,7 +280,7 @@ void BM_noise_table(benchmark::State& state) {
             for (double k : {0.1, 0.3, 0.5, 0.7, 0.8, -1.0}) {
                 double truth = 0;
                 const ks::IndexedMesh noisy = k > 0 ? ss::add_gaussian_noise(clean, k * L, true, 11, &truth)
-                                                    : add_impulsive_noise(clean, L, 11, &truth);
+                                                    : ss::add_impulsive_noise(clean, L, 11, &truth);
                 auto cell = [&](const ks::IndexedMesh& m) {
                     const auto d = ks::denoise_metrics(m, clean);
                     char buf[64];

@@ -147,6 +147,29 @@ inline ks::IndexedMesh add_gaussian_noise(const ks::IndexedMesh& m, double sigma
     return out;
 }
 
+/// Impulsive noise: one vertex in `every` (chosen by a fixed generator) moved along its
+/// clean normal by a Gaussian amount of standard deviation `sigma` (add_gaussian_noise's
+/// moves, seed `seed`); the others stay exactly in place. `normal_rms` (if given)
+/// receives the rms over all vertices of the moves along the normals.
+inline ks::IndexedMesh add_impulsive_noise(const ks::IndexedMesh& m, double sigma, std::uint32_t seed,
+                                           double* normal_rms = nullptr, unsigned every = 10) {
+    const auto moved = add_gaussian_noise(m, sigma, true, seed);
+    ks::IndexedMesh out = m;
+    out.normals.clear();
+    const auto n = ks::vertex_normals(m);
+    std::uint32_t x = seed * 2654435761u;
+    double acc = 0;
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+        x = x * 1664525u + 1013904223u;
+        if ((x >> 8) % every != 0) continue;
+        out.vertices[v] = moved.vertices[v];
+        const double d = (moved.vertices[v] - m.vertices[v]).dot(n[v]);
+        acc += d * d;
+    }
+    if (normal_rms) *normal_rms = std::sqrt(acc / double(m.vertices.size()));
+    return out;
+}
+
 /// The sharp edges (a < b) of box_mesh(n): the mesh edges on the 12 box edges.
 inline std::set<std::array<ks::Index, 2>> box_edges(const ks::IndexedMesh& m) {
     const ks::MeshTopology topo(m.vertices.size(), m.faces);
