@@ -2,7 +2,7 @@
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T]
-// [--edge-iterations N] [--face-iterations N] [--no-features] [--features FEATURES.ply]
+// [--edge-iterations N] [--face-iterations N] [--no-features] [--no-coplanar-creases] [--features FEATURES.ply]
 // [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N]`: feature-aware
 // bilateral smoothing (a Taubin low-pass first under strong noise); the sharp edges can be
 // written as PLY polylines. `--preset paper` starts from the paper's published
@@ -21,6 +21,7 @@ struct SmoothOptions {
     std::string input, output, features;
     kintsugi::FeatureBilateralParams params;
     bool no_features = false;
+    bool no_coplanar = false;
     // --d and --face-iterations: given, or left to the noise estimate (unset optionals).
     double d = 0;
     std::size_t face_iterations = 0;
@@ -76,6 +77,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ->capture_default_str()
         ->check(CLI::IsMember({"default", "paper"}));
     cmd.add_flag("--no-features", o->no_features, "Run the face filters alone, without sharp-edge handling");
+    cmd.add_flag("--no-coplanar-creases", o->no_coplanar,
+                 "Do not read creases from faces that impulsive noise left exactly in their planes (the voting "
+                 "tensor alone; the paper preset never reads them)");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
         if (o->no_features && !o->features.empty())
@@ -100,6 +104,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             if (o->lowpass_noise_option->count() > 0) params.lowpass_noise = o->params.lowpass_noise;
         }
         params.features = !o->no_features;
+        if (o->no_coplanar) params.detection.coplanar_creases = false;
         if (o->d_option->count() > 0) params.d = o->d;
         if (o->face_iterations_option->count() > 0) params.face_iterations = o->face_iterations;
         if (o->lowpass_iterations_option->count() > 0) params.lowpass_iterations = o->lowpass_iterations;
@@ -132,6 +137,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["d"] = r.d;
         j["parameters"]["edge_threshold"] = params.detection.edge_threshold;
         j["parameters"]["voting_cube"] = params.detection.voting_cube;
+        j["parameters"]["coplanar_creases"] = params.detection.coplanar_creases;
         j["parameters"]["edge_iterations"] = params.edge_iterations;
         j["parameters"]["face_iterations"] = r.face_iterations;
         j["parameters"]["normal_iterations"] = r.normal_iterations;
@@ -156,6 +162,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["faces"] = r.faces;
         j["sharp_edges"] = r.features.sharp_edges.size();
         j["feature_vertices"] = r.feature_vertices;
+        j["anchored_faces"] = r.features.anchored_faces;
+        j["coplanar_sharp_edges"] = r.features.coplanar_sharp_edges;
         j["degenerate_faces"] = r.degenerate_faces;
         j["mean_edge_length"] = r.features.mean_edge_length;
         if (!o->features.empty()) j["features"] = o->features;
