@@ -690,13 +690,13 @@ TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers"
         MESSAGE(std::string(name) << ": sharp edges P " << pr.precision << " R " << pr.recall << ", anchored faces "
                      << r.features.anchored_faces);
         if (twelve) {
-            CHECK(pr.precision >= 0.8);  // 0.849
-            CHECK(pr.recall >= 0.8);     // 0.856
+            CHECK(pr.precision >= 0.8);  // 0.856
+            CHECK(pr.recall >= 0.8);     // 0.819
             CHECK(r.features.anchored_faces > 1000);
         }
         CHECK(mo.mean_normal_angle_deg < mt.mean_normal_angle_deg - 0.4);
         CHECK(mo.vertex_rms < mt.vertex_rms);
-        CHECK(mo.mean_normal_angle_deg < (twelve ? 5.0 : 8.0));  // 4.46, 7.56 (before the stage: 7.67, 7.56)
+        CHECK(mo.mean_normal_angle_deg < (twelve ? 5.0 : 8.0));  // 4.70, 7.56 (before the stage: 7.67, 7.56)
         CHECK(mo.mean_normal_angle_deg <= mp.mean_normal_angle_deg + 0.6);
         if (twelve) CHECK(mo.mean_normal_angle_deg < mp.mean_normal_angle_deg - 2);
         CHECK(std::abs(ks::signed_volume(ours) / ks::signed_volume(noisy) - 1) <= 0.005);
@@ -752,6 +752,17 @@ TEST_CASE("impulsive noise: creases read from the faces left in their planes (tw
     CHECK(g1.features.anchored_faces < clean.faces.size() / 100);
     CHECK(g1.features.coplanar_sharp_edges == 0);
     CHECK(g1.features.sharp_edges == g0.features.sharp_edges);
+    // A curved shape with the same impulsive noise: faces coplanar by accident (25) explain
+    // no crease (the support test; on bunny00 it cut 1,715 false creases to 104).
+    auto bunny = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off");
+    bunny.normals.clear();
+    const auto bi = ss::add_impulsive_noise(bunny, ks::mean_edge_length(bunny), 11);
+    const auto b1 = ks::detect_sharp_features(bi), b0 = ks::detect_sharp_features(bi, tensor_only);
+    MESSAGE("bunny.off, impulsive: " << b1.features.anchored_faces << " anchored faces, "
+                                     << b1.features.coplanar_sharp_edges << " edges from their planes");
+    CHECK(b1.features.anchored_faces > 0);
+    CHECK(b1.features.coplanar_sharp_edges == 0);
+    CHECK(b1.features.sharp_edges == b0.features.sharp_edges);
 }
 
 TEST_CASE_TEMPLATE("impulsive noise on a box: the same creases on every mesh type and thread count", T, ks::IndexedMesh,

@@ -27,7 +27,11 @@
 ///     |d1 − d2| with its signed distances (a crease vertex moved along its normal stays
 ///     on the planes' bisector). With a pair, the edge is sharp when the pair's worse
 ///     endpoint scores below 0.35|e| and the edge runs along the line (its extent along
-///     it at least half its length).
+///     it at least half its length), and at least a quarter of its endpoints'
+///     neighbours lie on one of the two planes: on a curved part a few faces are
+///     coplanar by accident (bunny00 with 10 % impulsive noise: 2,418 anchored faces and
+///     1,715 false creases without this test, 104 with it), while at a real crease the
+///     unmoved neighbours (half or more of them) lie on the planes.
 /// The sharp edges are the voting tensor's and these together: letting the stage also
 /// veto the tensor's edges (where a pair exists but scores too high) or replace them
 /// near anchored faces lost creases the stage cannot explain (curved creases, cylinder
@@ -42,6 +46,7 @@
 #include <kintsugi/smooth/detail/feature_bilateral_impl.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -60,6 +65,7 @@ struct CoplanarConstants {
     static constexpr Scalar line_reach = 1.2;     ///< the planes' line to each endpoint, |e|
     static constexpr Scalar max_score = 0.35;     ///< worse endpoint score of a sharp edge, |e|
     static constexpr Scalar min_extent = 0.5;     ///< edge extent along the line, of its length
+    static constexpr Scalar min_support = 0.25;   ///< endpoints' neighbours on one of the planes
     static constexpr int near_ring = 3;           ///< edges whose nearest plane is this near are tested
     static constexpr std::size_t partner_tests = 512;  ///< faces one anchoring test visits at most
 };
@@ -185,6 +191,7 @@ inline CoplanarCreases coplanar_creases(const std::vector<Vec3>& V, const std::v
         const Vec3 pa = V[a] - mid, pb = V[b] - mid;
         Scalar best = std::numeric_limits<Scalar>::infinity();
         Vec3 best_dir = Vec3::Zero();
+        std::array<std::size_t, 2> best_pair{0, 0};
         for (std::size_t i = 0; i < n; ++i)
             for (std::size_t j = i + 1; j < n; ++j) {
                 if (planes[i].ring != nearest && planes[j].ring != nearest) continue;
@@ -216,9 +223,22 @@ inline CoplanarCreases coplanar_creases(const std::vector<Vec3>& V, const std::v
                 if (ok && score < best) {
                     best = score;
                     best_dir = u;
+                    best_pair = {i, j};
                 }
             }
-        out.sharp[e] = best < C::max_score * L && std::abs((pb - pa).dot(best_dir)) >= C::min_extent * (pb - pa).norm();
+        if (!(best < C::max_score * L && std::abs((pb - pa).dot(best_dir)) >= C::min_extent * (pb - pa).norm())) return;
+        {  // support: the endpoints' neighbours on the two planes
+            const Vec3 &n1 = geo.normal[planes[best_pair[0]].face], &n2 = geo.normal[planes[best_pair[1]].face];
+            const Vec3 &q1 = geo.centroid[planes[best_pair[0]].face], &q2 = geo.centroid[planes[best_pair[1]].face];
+            std::size_t on = 0, all = 0;
+            for (Index v : {a, b})
+                for (Index w : topo.vertex_neighbors(v)) {
+                    ++all;
+                    on += std::abs(n1.dot(V[w] - q1)) < tau || std::abs(n2.dot(V[w] - q2)) < tau;
+                }
+            if (static_cast<Scalar>(on) < C::min_support * static_cast<Scalar>(all)) return;
+        }
+        out.sharp[e] = 1;
     });
     for (unsigned char x : out.sharp) out.sharp_edges += x;
     progress.update(to);
