@@ -164,6 +164,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["feature_vertices"] = r.feature_vertices;
         j["anchored_faces"] = r.features.anchored_faces;
         j["coplanar_sharp_edges"] = r.features.coplanar_sharp_edges;
+        j["held_vertices"] = r.held_vertices;
         j["degenerate_faces"] = r.degenerate_faces;
         j["mean_edge_length"] = r.features.mean_edge_length;
         if (!o->features.empty()) j["features"] = o->features;

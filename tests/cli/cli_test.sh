@@ -220,7 +220,7 @@ json_check "smooth: noise estimate and the values used in --json" "j['noise']['s
 expect 0 "smooth --lowpass-iterations 3 --lowpass-noise 0" -- "$bin" smooth "$mesh" "$work/sm5.off" --lowpass-iterations 3 --lowpass-noise 0 --face-iterations 1 --json
 json_check "smooth: the low-pass steps given" "j['parameters']['lowpass_iterations']==3 and j['parameters']['lowpass_iterations_from_noise'] is False and j['parameters']['lowpass_noise']==0"
 expect 0 "smooth --no-coplanar-creases" -- "$bin" smooth "$mesh" "$work/sm6.off" --no-coplanar-creases --face-iterations 1 --json
-json_check "smooth: the coplanar stage off" "j['parameters']['coplanar_creases'] is False and j['anchored_faces']==0 and j['coplanar_sharp_edges']==0"
+json_check "smooth: the coplanar stage off" "j['parameters']['coplanar_creases'] is False and j['anchored_faces']==0 and j['coplanar_sharp_edges']==0 and j['held_vertices']==0"
 expect 0 "smooth with explicit d and face iterations" -- "$bin" smooth "$mesh" "$work/sm2.off" --d 0.2 --face-iterations 2 --json
 json_check "smooth: explicit values win, no estimate" "j['parameters']['d']==0.2 and j['parameters']['face_iterations']==2 and j['parameters']['d_from_noise'] is False and 'noise' not in j"
 expect 0 "smooth --preset paper" -- "$bin" smooth "$mesh" "$work/sm3.off" --preset paper --json
