@@ -140,16 +140,19 @@
 /// apart explains it: their line passes along the edge, its endpoints lie on both
 /// planes or on their bisector (a crease vertex moved along its normal), and a quarter
 /// of its endpoints' neighbours lie on one of them. These edges are added to the voting
-/// tensor's. The stage reads the input before the low-pass; the steps and constants are
-/// in smooth/detail/coplanar_creases.hpp. Measured (docs/methods/feature_bilateral.md;
-/// sharp-edge P/R, normal error with the defaults, voting tensor alone → with the stage):
-/// Twelve0.5Impulsive (the pair it was tuned on) 1.0/0.019, 7.67° → 0.856/0.819, 4.70°;
-/// held out, generated (10 % of the vertices moved along the normals by Gaussian amounts
-/// of σ = |e|): Twelve 0.034/0.006, 7.57° → 0.816/0.971, 2.76°; the Block
-/// 0.768/0.933, 3.71° → 0.761/0.968, 3.57°. On curved shapes it is inert or nearly
-/// (SharpSphere 7.74° → 7.81°, bunny00 4.77° → 4.76°), and under Gaussian noise no
-/// face is anchored but by accident and nothing changes. Cost: one pass over the faces'
-/// neighbourhoods, and when faces are anchored seven Jacobi passes over the edges.
+/// tensor's. The corners of two anchored faces or more were not moved by the noise: with
+/// `hold_unmoved` (default) they stay where they are through the low-pass and the filters.
+/// The stage reads the input before the low-pass and stops when fewer than 1 % of the
+/// faces are anchored (Gaussian noise, scans: a few by accident); the steps and constants
+/// are in smooth/detail/coplanar_creases.hpp. Measured (docs/methods/feature_bilateral.md;
+/// sharp-edge P/R, normal error with the defaults; voting tensor alone → with the stage
+/// and the held vertices): Twelve0.5Impulsive (the pair it was tuned on) 1.0/0.019,
+/// 7.67° → 0.856/0.819, 4.02°; held out, generated (10 % of the vertices moved along the
+/// normals by Gaussian amounts of σ = |e|): Twelve 0.034/0.006, 7.57° → 0.816/0.971,
+/// 1.11°; the Block 0.768/0.933, 3.71° → 0.761/0.968, 1.00°; SharpSphere 7.74° → 7.32°;
+/// curved shapes are unchanged or slightly better (bunny00 4.77° → 4.74°, fertility
+/// 9.65° → 9.49°). Cost: one pass over the faces' neighbourhoods, and when the stage runs
+/// seven Jacobi passes over the edges.
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
@@ -251,8 +254,9 @@ struct FeatureBilateralParams {
     /// Hold the corners of anchored faces (faces impulsive noise left exactly in their
     /// planes; SharpFeatureParams::coplanar_creases) in place through the low-pass and the
     /// filters: those vertices were not moved by the noise, so every move is an error
-    /// (Block + 10 % impulsive: 3.6° → 0.9°; "Impulsive noise" above). No effect when the
-    /// coplanar stage is off or stops (under 1 % of the faces anchored). false = the paper.
+    /// (Block + 10 % impulsive: 3.6° → 1.0°; "Impulsive noise" above). Held: the corners of
+    /// two anchored faces or more (a moved vertex can be the corner of one). No effect when
+    /// the coplanar stage is off or stops (under 1 % of the faces anchored). false = the paper.
     bool hold_unmoved = true;
     /// Taubin λ|μ steps (λ = 0.5, μ = −0.5, one-ring umbrella, boundary vertices fixed) run
     /// on the mesh before everything else (see "Strong noise: a low-pass first" above).
