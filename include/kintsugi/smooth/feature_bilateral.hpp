@@ -718,7 +718,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             for (std::size_t v = 0; v < nv; ++v)
                 if (on_edge[v] && !(hold && (*hold)[v])) edge_vertices.push_back(v);
             result.feature_vertices = edge_vertices.size();
-            if (params.edge_vertex_motion == EdgeVertexMotion::fixed) fixed = on_edge;
+            if (params.edge_vertex_motion == EdgeVertexMotion::fixed)
+                for (std::size_t v = 0; v < nv; ++v) fixed[v] = on_edge[v] || (hold && (*hold)[v]);
 
             progress.stage("edge smoothing", 0.45, 0.5);
             for (std::size_t it = 0; it < params.edge_iterations; ++it) {

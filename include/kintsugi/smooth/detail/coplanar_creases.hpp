@@ -71,6 +71,7 @@ struct CoplanarConstants {
     /// noise leaves a few: 1,093 of 589,824 faces in bench_smooth's uniform-noise input).
     static constexpr Scalar min_anchored_fraction = 0.01;
     static constexpr Scalar min_support = 0.25;   ///< endpoints' neighbours on one of the planes
+    static constexpr std::size_t support_samples = 32;  ///< neighbours read per endpoint at most
     static constexpr int near_ring = 3;           ///< edges whose nearest plane is this near are tested
     static constexpr std::size_t partner_tests = 512;  ///< faces one anchoring test visits at most
 };
@@ -247,12 +248,18 @@ inline CoplanarCreases coplanar_creases(const std::vector<Vec3>& V, const std::v
         {  // support: the endpoints' neighbours on the two planes
             const Vec3 &n1 = geo.normal[planes[best_pair[0]].face], &n2 = geo.normal[planes[best_pair[1]].face];
             const Vec3 &q1 = geo.centroid[planes[best_pair[0]].face], &q2 = geo.centroid[planes[best_pair[1]].face];
+            // At most support_samples neighbours per endpoint, evenly strided: a hub of a
+            // fan would otherwise cost its valence once per spoke.
             std::size_t on = 0, all = 0;
-            for (Index v : {a, b})
-                for (Index w : topo.vertex_neighbors(v)) {
+            for (Index v : {a, b}) {
+                const auto ring = topo.vertex_neighbors(v);
+                const std::size_t step = std::max<std::size_t>(1, ring.size() / C::support_samples);
+                for (std::size_t k = 0; k < ring.size(); k += step) {
+                    const Index w = ring[k];
                     ++all;
                     on += std::abs(n1.dot(V[w] - q1)) < tau || std::abs(n2.dot(V[w] - q2)) < tau;
                 }
+            }
             if (static_cast<Scalar>(on) < C::min_support * static_cast<Scalar>(all)) return;
         }
         out.sharp[e] = 1;
