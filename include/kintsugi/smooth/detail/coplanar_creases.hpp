@@ -28,7 +28,7 @@
 ///     on the planes' bisector). With a pair, the edge is sharp when the pair's worse
 ///     endpoint scores below 0.35|e| and the edge runs along the line (its extent along
 ///     it at least half its length), and at least a quarter of its endpoints'
-///     neighbours lie on one of the two planes: on a curved part a few faces are
+///     neighbours (at most 32 read per endpoint) lie on one of the two planes: on a curved part a few faces are
 ///     coplanar by accident (bunny00 with 10 % impulsive noise: 2,418 anchored faces and
 ///     1,715 false creases without this test, 104 with it), while at a real crease the
 ///     unmoved neighbours (half or more of them) lie on the planes.
