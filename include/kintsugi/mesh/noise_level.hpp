@@ -130,11 +130,13 @@ inline std::vector<Scalar> local_variances(const std::vector<Vec3>& V, const std
             for (std::size_t r = 0; r < rings && ring.size() < 4096; ++r) {
                 const std::size_t level_end = ring.size();
                 for (std::size_t k = level_begin; k < level_end && ring.size() < 4096; ++k)
-                    for (Index u : topo.vertex_neighbors(ring[k]))
+                    for (Index u : topo.vertex_neighbors(ring[k])) {
+                        if (ring.size() >= 4096) break;  // else a hub's whole ring, once per spoke
                         if (mark[u] != stamp) {
                             mark[u] = stamp;
                             ring.push_back(u);
                         }
+                    }
                 level_begin = level_end;
             }
             const std::size_t n = ring.size();
