@@ -70,8 +70,8 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
-#include <utility>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace fs = std::filesystem;

@@ -402,9 +402,7 @@ inline std::optional<CoplanarCreases> run_coplanar(const IndexedMesh& m, const M
                                                    double to) {
     if (!p.coplanar_creases) return std::nullopt;
     progress.stage("coplanar creases", from, to);
-    // The crease angle implied by the threshold, as in the voting tensor's crease test.
-    const Scalar crease_cos = std::cos(2 * std::atan(std::sqrt(p.edge_threshold)));
-    return coplanar_creases(m.vertices, m.faces, topo, L, crease_cos, progress, 0.0, 1.0);
+    return coplanar_creases(m.vertices, m.faces, topo, L, crease_cosine(p.edge_threshold), progress, 0.0, 1.0);
 }
 
 /// The face filter's range scale and iteration count set from the noise level
@@ -718,8 +716,8 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             for (std::size_t v = 0; v < nv; ++v)
                 if (on_edge[v] && !(hold && (*hold)[v])) edge_vertices.push_back(v);
             result.feature_vertices = edge_vertices.size();
-            if (params.edge_vertex_motion == EdgeVertexMotion::fixed)
-                for (std::size_t v = 0; v < nv; ++v) fixed[v] = on_edge[v] || (hold && (*hold)[v]);
+            if (params.edge_vertex_motion == EdgeVertexMotion::fixed)  // added to the held vertices
+                for (std::size_t v = 0; v < nv; ++v) fixed[v] |= on_edge[v];
 
             progress.stage("edge smoothing", 0.45, 0.5);
             for (std::size_t it = 0; it < params.edge_iterations; ++it) {

@@ -45,8 +45,8 @@ struct SharpFeatureParams {
     /// true: where faces that impulsive noise left exactly in the part's planes are near an
     /// edge, the edge is sharp when a pair of those planes at least 2·atan(√edge_threshold)
     /// apart explains it, whatever the voting tensor says ("Impulsive noise" in
-    /// smooth/feature_bilateral.hpp; Twelve0.5Impulsive recall 0.02 → 0.85). Inert without
-    /// such faces (Gaussian noise, scans). false = the paper.
+    /// smooth/feature_bilateral.hpp; Twelve0.5Impulsive recall 0.02 → 0.82). Inert when fewer
+    /// than 1 % of the faces are such faces (Gaussian noise, scans). false = the paper.
     bool coplanar_creases = true;
     RunControl control{};
 };

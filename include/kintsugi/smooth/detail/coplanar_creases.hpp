@@ -28,10 +28,10 @@
 ///     on the planes' bisector). With a pair, the edge is sharp when the pair's worse
 ///     endpoint scores below 0.35|e| and the edge runs along the line (its extent along
 ///     it at least half its length), and at least a quarter of its endpoints'
-///     neighbours (at most 32 read per endpoint) lie on one of the two planes: on a curved part a few faces are
-///     coplanar by accident (bunny00 with 10 % impulsive noise: 2,418 anchored faces and
-///     1,715 false creases without this test, 104 with it), while at a real crease the
-///     unmoved neighbours (half or more of them) lie on the planes.
+///     neighbours (at most 32 read per endpoint) lie on one of the two planes: on a
+///     curved part a few faces are coplanar by accident (bunny00 with 10 % impulsive
+///     noise: 2,418 anchored faces and 1,715 false creases without this test, 104 with
+///     it), while at a real crease the unmoved neighbours (half or more) lie on the planes.
 /// The sharp edges are the voting tensor's and these together: letting the stage also
 /// veto the tensor's edges (where a pair exists but scores too high) or replace them
 /// near anchored faces lost creases the stage cannot explain (curved creases, cylinder
@@ -111,7 +111,6 @@ inline CoplanarCreases coplanar_creases(const std::vector<Vec3>& V, const std::v
     blocked_for(progress, nf, from, mid1, [&](std::size_t t) {
         if (!(geo.area[t] > 0)) return;
         const Face& ft = F[t];
-        const Vec3& nt = geo.normal[t];
         std::size_t tests = 0;
         for (Index c : ft) {
             const auto ring = topo.vertex_neighbors(c);
@@ -119,10 +118,10 @@ inline CoplanarCreases coplanar_creases(const std::vector<Vec3>& V, const std::v
                 const Index w = k == 0 ? c : ring[k - 1];
                 for (Index s : topo.vertex_faces(w)) {
                     if (++tests > C::partner_tests) return;
-                    if (!(nt.dot(geo.normal[s]) >= C::normal_cos) || s == t) continue;  // cheap test first
+                    if (s == t || !coplanar(static_cast<Index>(t), s)) continue;  // its normal test first: cheap
                     int shared = 0;
                     for (Index x : F[s]) shared += x == ft[0] || x == ft[1] || x == ft[2];
-                    if (shared <= 1 && coplanar(static_cast<Index>(t), s)) {
+                    if (shared <= 1) {
                         anchored[t] = 1;
                         return;
                     }

@@ -417,6 +417,10 @@ struct FeatureData {
     std::size_t coplanar_sharp_edges = 0;
 };
 
+/// The cosine of the crease angle an edge-strength threshold implies: s = tan²(φ/2) for a
+/// symmetric edge, so φ = 2·atan(√s) (the crease test here and the coplanar-crease stage).
+inline Scalar crease_cosine(Scalar edge_threshold) { return std::cos(2 * std::atan(std::sqrt(edge_threshold))); }
+
 /// Normal voting tensor of every vertex (Sun et al. 2002), its eigen-analysis, the
 /// edge strength s_i = v2 / v1 and the sharp edges.
 inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
@@ -474,8 +478,7 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
     // aligned with that vertex's e3 (the crease direction).
     const auto& E = topo.edges();
     std::vector<unsigned char> sharp(E.size(), 0);
-    // The crease angle implied by the threshold: s = tan²(φ/2) for a symmetric edge.
-    const Scalar crease_cos = std::cos(2 * std::atan(std::sqrt(st.edge_threshold)));
+    const Scalar crease_cos = crease_cosine(st.edge_threshold);
     parallel_for(0, E.size(), [&](std::size_t e) {
         const Index a = E[e][0], b = E[e][1];
         if (a == b) return;
