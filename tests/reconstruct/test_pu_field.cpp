@@ -326,6 +326,33 @@ TEST_CASE("PUField: inward normals give the same field; seeds change the cover o
     for (std::size_t i = 0; i < pts.size(); i += 97) CHECK(std::abs(a.field(pts[i]) - d.field(pts[i])) < a.field.epsilon());
 }
 
+TEST_CASE("PUField: keep_octree = false releases the octree and changes nothing else") {
+    const Sphere s;
+    std::mt19937_64 rng(5);
+    V pts, nrm;
+    s.sample(6000, rng, pts, nrm);
+    const auto a = ks::PUField::build(ks::with_normals(pts, nrm), {.max_level = 6});
+    const auto b = ks::PUField::build(ks::with_normals(pts, nrm), {.max_level = 6, .keep_octree = false});
+    REQUIRE(a.status == ks::Status::ok);
+    REQUIRE(b.status == ks::Status::ok);
+    CHECK(a.field.octree().size() == a.field.num_cells());
+    CHECK(b.field.octree().size() == 0);
+    CHECK(b.field.num_cells() == a.field.num_cells());
+    CHECK(b.octree_cells == a.octree_cells);
+    CHECK(bitwise_equal(a.field.supports(), b.field.supports()));
+    // Values and the domain test agree, also on the cube's faces and just outside.
+    const ks::Vec3 lo = a.field.domain_min();
+    const double side = a.field.domain_side();
+    std::uniform_real_distribution<double> u(-0.1, 1.1);
+    for (int q = 0; q < 3000; ++q) {
+        ks::Vec3 x = lo + side * ks::Vec3(u(rng), u(rng), u(rng));
+        if (q % 10 == 0) x[q % 3] = q % 20 == 0 ? lo[q % 3] : lo[q % 3] + side;
+        CHECK(a.field.in_domain(x) == b.field.in_domain(x));
+        const double va = a.field(x), vb = b.field(x);
+        CHECK(((std::isnan(va) && std::isnan(vb)) || va == vb));
+    }
+}
+
 TEST_CASE("PUField: bit-identical with 1 and 2 threads") {
     const Torus t;
     std::mt19937_64 rng(4);

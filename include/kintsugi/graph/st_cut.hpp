@@ -27,12 +27,16 @@
 
 #include <boost/graph/boykov_kolmogorov_max_flow.hpp>
 #include <boost/graph/compressed_sparse_row_graph.hpp>
+#include <boost/iterator/counting_iterator.hpp>
+#include <boost/iterator/transform_iterator.hpp>
 #include <boost/property_map/property_map.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -130,9 +134,6 @@ inline void st_cut_validate(const StCutGraph& g) {
 
 /// The flow computation proper, on validated input.
 inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
-    using Graph = boost::compressed_sparse_row_graph<boost::directedS>;
-    using Edge = boost::graph_traits<Graph>::edge_descriptor;
-
     const std::size_t n = g.num_nodes;
     const std::size_t src = n, snk = n + 1;
     auto tcap = [&](const std::vector<Scalar>& v, std::size_t i) { return v.empty() ? Scalar(0) : v[i]; };
@@ -147,72 +148,103 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
     }
     const Scalar big = 2 * finite_total + 1;
 
-    // Arcs in pairs (2k, 2k+1) that are each other's reverse.
-    struct Arc {
-        Index from, to;
-        Scalar cap;
-    };
-    std::vector<Arc> arcs;
-    arcs.reserve(2 * g.edges.size() + 2 * n);
-    for (std::size_t i = 0; i < g.edges.size(); ++i) {
-        const auto [a, b] = g.edges[i];
-        const Scalar c = g.capacities[i];
-        const Scalar r = g.reverse_capacities.empty() ? c : g.reverse_capacities[i];
-        if (a == b || (c == 0 && r == 0)) continue;
-        arcs.push_back({a, b, c});
-        arcs.push_back({b, a, r});
-    }
-    // Terminal arcs: the common part of both terminal capacities is cut whatever the
-    // labelling, so it goes into a constant and only the difference is kept.
+    // The network in CSR form with 32-bit indices (half the memory of size_t: 2M points
+    // at level 9 build 10M arcs). Each edge gives a pair of arcs, each the other's
+    // reverse; the arcs of a node are stored in the order they are made (the edges in
+    // their order, then the terminal arcs node by node), so the network is a function
+    // of the graph alone.
+    const std::size_t nv = n + 2;
     Scalar constant = 0;
     bool constant_infinite = false;
-    for (std::size_t i = 0; i < n; ++i) {
-        Scalar cs = tcap(g.source_capacities, i), ct = tcap(g.sink_capacities, i);
+    // Terminal capacities after removing their common part, which every labelling cuts
+    // (it goes into a constant).
+    auto terminal = [&](std::size_t i, Scalar& cs, Scalar& ct) {
+        cs = tcap(g.source_capacities, i);
+        ct = tcap(g.sink_capacities, i);
         const bool inf_s = std::isinf(cs), inf_t = std::isinf(ct);
         if (inf_s) cs = big;
         if (inf_t) ct = big;
         const Scalar common = std::min(cs, ct);
-        if (!inf_s && !inf_t) constant += common;
         cs -= common;
         ct -= common;
-        if (cs > 0) {
-            arcs.push_back({src, i, cs});
-            arcs.push_back({i, src, 0});
+        return (!inf_s && !inf_t) ? common : Scalar(0);
+    };
+    auto kept = [&](std::size_t i) {
+        const auto [a, b] = g.edges[i];
+        const Scalar r = g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i];
+        return a != b && !(g.capacities[i] == 0 && r == 0);
+    };
+    std::vector<std::uint32_t> offset(nv + 1, 0);
+    std::size_t na = 0;
+    {
+        std::vector<std::size_t> deg(nv, 0);
+        for (std::size_t i = 0; i < g.edges.size(); ++i)
+            if (kept(i)) {
+                ++deg[g.edges[i][0]];
+                ++deg[g.edges[i][1]];
+            }
+        for (std::size_t i = 0; i < n; ++i) {
+            Scalar cs = 0, ct = 0;
+            constant += terminal(i, cs, ct);
+            if (cs > 0) ++deg[src], ++deg[i];
+            if (ct > 0) ++deg[i], ++deg[snk];
         }
-        if (ct > 0) {
-            arcs.push_back({i, snk, ct});
-            arcs.push_back({snk, i, 0});
-        }
+        for (std::size_t v = 0; v < nv; ++v) na += deg[v];
+        if (na >= std::numeric_limits<std::uint32_t>::max() || nv >= std::numeric_limits<std::uint32_t>::max())
+            throw invalid_input("kintsugi::st_min_cut: the flow network has " + std::to_string(na) + " arcs and " +
+                                std::to_string(nv) + " nodes; at most 4,294,967,294 of each are supported "
+                                "(split the problem)");
+        for (std::size_t v = 0; v < nv; ++v) offset[v + 1] = offset[v] + static_cast<std::uint32_t>(deg[v]);
     }
     progress.check();
-
-    // Counting sort of the arcs by source node: CSR order.
-    const std::size_t nv = n + 2, na = arcs.size();
-    std::vector<std::size_t> offset(nv + 1, 0);
-    for (const Arc& a : arcs) ++offset[a.from + 1];
-    for (std::size_t v = 0; v < nv; ++v) offset[v + 1] += offset[v];
-    std::vector<std::size_t> pos(na);  // arc id -> CSR position
-    {
-        std::vector<std::size_t> fill(offset.begin(), offset.end() - 1);
-        for (std::size_t k = 0; k < na; ++k) pos[k] = fill[arcs[k].from]++;
-    }
-    std::vector<std::pair<std::size_t, std::size_t>> sorted(na);
+    std::vector<std::uint32_t> target(na), reverse(na);
     std::vector<Scalar> cap(na), residual(na);
-    std::vector<std::size_t> arc_of(na);
-    for (std::size_t k = 0; k < na; ++k) {
-        sorted[pos[k]] = {arcs[k].from, arcs[k].to};
-        cap[pos[k]] = arcs[k].cap;
-        arc_of[pos[k]] = k;
+    {
+        std::vector<std::uint32_t> fill(offset.begin(), offset.end() - 1);
+        auto pair = [&](std::size_t a, std::size_t b, Scalar c, Scalar r) {
+            const std::uint32_t p = fill[a]++, q = fill[b]++;
+            target[p] = static_cast<std::uint32_t>(b);
+            target[q] = static_cast<std::uint32_t>(a);
+            cap[p] = c;
+            cap[q] = r;
+            reverse[p] = q;
+            reverse[q] = p;
+        };
+        for (std::size_t i = 0; i < g.edges.size(); ++i)
+            if (kept(i))
+                pair(g.edges[i][0], g.edges[i][1], g.capacities[i],
+                     g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i]);
+        for (std::size_t i = 0; i < n; ++i) {
+            Scalar cs = 0, ct = 0;
+            (void)terminal(i, cs, ct);
+            if (cs > 0) pair(src, i, cs, 0);
+            if (ct > 0) pair(i, snk, ct, 0);
+        }
     }
-    std::vector<Arc>().swap(arcs);
-
-    Graph graph(boost::edges_are_sorted, sorted.begin(), sorted.end(), nv);
-    std::vector<std::pair<std::size_t, std::size_t>>().swap(sorted);
+    using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_property, boost::no_property,
+                                                     boost::no_property, std::uint32_t, std::uint32_t>;
+    using Edge = boost::graph_traits<Graph>::edge_descriptor;
+    std::optional<Graph> graph_storage;
+    {
+        // The (source, target) pairs in CSR order, made on the fly (the source of
+        // position p is the node whose offset range holds p).
+        auto arc = [&](std::uint32_t p) {
+            const auto v = static_cast<std::uint32_t>(std::upper_bound(offset.begin(), offset.end(), p) - offset.begin() - 1);
+            return std::pair<std::uint32_t, std::uint32_t>(v, target[p]);
+        };
+        const auto first = boost::make_transform_iterator(boost::counting_iterator<std::uint32_t>(0), arc);
+        const auto last = boost::make_transform_iterator(boost::counting_iterator<std::uint32_t>(static_cast<std::uint32_t>(na)), arc);
+        graph_storage.emplace(boost::edges_are_sorted, first, last, nv);
+    }
+    Graph& graph = *graph_storage;
     const auto eidx = get(boost::edge_index, graph);
-    std::vector<Edge> desc(na);
-    for (auto [it, end] = boost::edges(graph); it != end; ++it) desc[get(eidx, *it)] = *it;
+    // The edge index of the CSR graph is the arc's position; the reverse arc of p starts
+    // at p's target.
     std::vector<Edge> rev(na);
-    for (std::size_t p = 0; p < na; ++p) rev[p] = desc[pos[arc_of[p] ^ std::size_t(1)]];
+    for (std::size_t p = 0; p < na; ++p) rev[p] = Edge(target[p], reverse[p]);
+    std::vector<std::uint32_t>().swap(target);
+    std::vector<std::uint32_t>().swap(reverse);
+    std::vector<std::uint32_t>().swap(offset);
     progress.check();
 
     const auto vidx = get(boost::vertex_index, graph);
@@ -223,7 +255,7 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
         graph, boost::make_iterator_property_map(cap.begin(), eidx),
         boost::make_iterator_property_map(residual.begin(), eidx), boost::make_iterator_property_map(rev.begin(), eidx),
         boost::make_iterator_property_map(pred.begin(), vidx), boost::make_iterator_property_map(color.begin(), vidx),
-        boost::make_iterator_property_map(dist.begin(), vidx), vidx, src, snk);
+        boost::make_iterator_property_map(dist.begin(), vidx), vidx, static_cast<std::uint32_t>(src), static_cast<std::uint32_t>(snk));
     progress.check();
 
     StCutResult out;

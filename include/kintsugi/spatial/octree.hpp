@@ -468,34 +468,57 @@ private:
             }
         }
 
-        // 4. Leaves: children of internal nodes that are not internal themselves.
+        // 4. Leaves: children of internal nodes that are not internal themselves, emitted
+        //    in Morton order by one depth-first walk. Every internal node's parent is
+        //    internal (runs of points; the balance adds each parent with its neighbours),
+        //    and the walk meets the internal nodes of each level in increasing order, so
+        //    one cursor per level answers "is this child internal" in O(1). (Merging the
+        //    levels' leaf lists one level at a time copied all cells once per level: 2M
+        //    points with 10 % outliers at level 9, 12M cells, took 5.5 s.)
         cells_.clear();
         if (internal[0].empty()) {
             cells_.push_back(OctreeCell{0, 0, 0, 0});
         } else {
-            // Each level's leaves come out sorted; merge the levels (coarse to fine).
-            std::vector<OctreeCell> level_cells, merged;
-            const auto by_code = [](const OctreeCell& a, const OctreeCell& b) { return a.code < b.code; };
-            for (int m = 0; m < L; ++m) {
-                const auto& I = internal[static_cast<std::size_t>(m)];
-                const std::vector<std::uint64_t> none;
-                const auto& C = (m + 1 < L) ? internal[static_cast<std::size_t>(m + 1)] : none;
-                auto it = C.begin();
-                const int shift = 3 * (L - m - 1);
-                level_cells.clear();
-                for (const std::uint64_t P : I)
-                    for (std::uint64_t k = 0; k < 8; ++k) {
-                        const std::uint64_t child = (P << 3) | k;
-                        while (it != C.end() && *it < child) ++it;
-                        if (it != C.end() && *it == child) continue;
-                        level_cells.push_back(OctreeCell{child << shift, 0, 0, static_cast<std::uint32_t>(m + 1)});
+            std::size_t total = 0;
+            for (int m = 0; m < L; ++m)
+                total += 8 * internal[static_cast<std::size_t>(m)].size() -
+                         (m + 1 < L ? internal[static_cast<std::size_t>(m + 1)].size() : 0);
+            cells_.reserve(total);
+            std::vector<std::size_t> cursor(static_cast<std::size_t>(L), 0);
+            struct Frame {
+                std::uint64_t node;
+                int level;
+                int next_child;
+            };
+            std::vector<Frame> stack;
+            stack.reserve(static_cast<std::size_t>(L) + 1);
+            stack.push_back({internal[0].front(), 0, 0});
+            cursor[0] = 1;
+            while (!stack.empty()) {
+                Frame& fr = stack.back();
+                if (fr.next_child == 8) {
+                    stack.pop_back();
+                    continue;
+                }
+                const int m = fr.level;
+                const std::uint64_t child = (fr.node << 3) | static_cast<std::uint64_t>(fr.next_child++);
+                if (m + 1 < L) {
+                    const auto& C = internal[static_cast<std::size_t>(m + 1)];
+                    std::size_t& at = cursor[static_cast<std::size_t>(m + 1)];
+                    if (at < C.size() && C[at] == child) {
+                        ++at;
+                        stack.push_back({child, m + 1, 0});
+                        continue;
                     }
-                if (level_cells.empty()) continue;
-                merged.resize(cells_.size() + level_cells.size());
-                std::merge(cells_.begin(), cells_.end(), level_cells.begin(), level_cells.end(), merged.begin(), by_code);
-                cells_.swap(merged);
+                }
+                cells_.push_back(
+                    OctreeCell{child << (3 * (L - m - 1)), 0, 0, static_cast<std::uint32_t>(m + 1)});
             }
+            for (int m = 0; m < L; ++m)
+                if (cursor[static_cast<std::size_t>(m)] != internal[static_cast<std::size_t>(m)].size())
+                    throw std::logic_error("kintsugi::Octree: an internal node without an internal parent");
         }
+        std::vector<std::vector<std::uint64_t>>().swap(internal);
         codes_.resize(cells_.size());
         levels_.resize(cells_.size());
         for (std::size_t c = 0; c < cells_.size(); ++c) {

@@ -46,7 +46,7 @@ KINTSUGI_STAGE PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vec
             nrm.swap(n2);
         }
         const KdTree tree(pts);
-        res.octree_cells = data->octree.size();
+        res.octree_cells = data->octree_cells = data->octree.size();
         res.max_level_cells = data->octree.cells_per_level().back();
 
         progress.stage("pu_cover", 0.1, 0.85);
@@ -62,6 +62,7 @@ KINTSUGI_STAGE PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vec
         res.supports = sup.size();
         res.fits_evaluated = stats.evaluated;
         res.fallback_supports = stats.fallback;
+        if (!params.keep_octree) data->octree = Octree();
 
         progress.stage("pu_index", 0.85, 1.0);
         const Scalar inv_scale = 1 / data->scale;

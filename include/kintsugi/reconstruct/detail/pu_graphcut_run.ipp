@@ -33,6 +33,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
                                                          .epsilon = params.epsilon,
                                                          .seed = params.seed,
                                                          .inward_normals = params.normals == NormalConvention::inward,
+                                                         .keep_octree = false,
                                                          .control = sub_control(control, 0.0, pu_end)});
     if (pu.status == Status::cancelled) {
         res.status = Status::cancelled;
@@ -67,7 +68,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             sites.push_back(p);
             radii.push_back(0);
         }
-        const PUTetMesh tm = regular_tet_mesh(sites, radii, progress, 0.0, 0.8);
+        PUTetMesh tm = regular_tet_mesh(sites, radii, progress, 0.0, 0.8);
         const std::size_t nv = tm.vertices.size();
         // Vertices are numbered by increasing site index, so the surviving supports come
         // first (vertex v < alive_supports is support tm.site[v]) and the outer layer last.

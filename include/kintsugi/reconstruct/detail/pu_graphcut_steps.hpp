@@ -77,15 +77,15 @@ inline std::vector<Vec3> box_surface_points(const BoundingBox& box, int per_side
 /// Step 5: the graph of eq. 8–10 over the tet mesh and its minimum cut.
 /// f_edge: field values for the edge capacities (eq. 10); f_terminal: values for the
 /// terminal links (eq. 8, 9); both > 0 inside. forced_out: vertices tied to the sink
-/// (the outer layer). Returns labels (1 = inside) and fills the cut value.
-inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std::vector<Scalar>& f_edge,
+/// (the outer layer). Returns labels (1 = inside) and fills the cut value. tm.edges is
+/// lent to the graph for the cut (no copy) and given back.
+inline std::vector<std::uint8_t> graphcut_labels(PUTetMesh& tm, const std::vector<Scalar>& f_edge,
                                                  const std::vector<Scalar>& f_terminal,
                                                  const std::vector<std::uint8_t>& forced_out, Scalar k,
                                                  Scalar& cut_value, const RunControl& control) {
     const std::size_t nv = tm.vertices.size();
     StCutGraph g;
     g.num_nodes = nv;
-    g.edges = tm.edges;
     g.capacities.resize(tm.edges.size());
     std::vector<Scalar> len_sum(nv, 0);
     std::vector<std::uint32_t> deg(nv, 0);
@@ -115,7 +115,9 @@ inline std::vector<std::uint8_t> graphcut_labels(const PUTetMesh& tm, const std:
     StCutParams sp;
     sp.control = control;
     sp.control.progress = nullptr;  // the caller reports around this stage
+    g.edges = std::move(tm.edges);
     const StCutResult cut = st_min_cut(g, sp);
+    tm.edges = std::move(g.edges);
     if (cut.status == Status::cancelled) throw cancelled_exception{};
     cut_value = cut.cut_value;
     std::vector<std::uint8_t> inside(nv);
