@@ -23,6 +23,7 @@
 
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/memory.hpp>
 #include <kintsugi/core/types.hpp>
 
 #include <boost/graph/boykov_kolmogorov_max_flow.hpp>
@@ -197,8 +198,9 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
         for (std::size_t v = 0; v < nv; ++v) offset[v + 1] = offset[v] + static_cast<std::uint32_t>(deg[v]);
     }
     progress.check();
-    std::vector<std::uint32_t> target(na), reverse(na);
-    std::vector<Scalar> cap(na), residual(na);
+    // (On huge pages where the system allows: 10M arcs fill 300 MB; core/memory.hpp.)
+    std::vector<std::uint32_t> target = huge_vector<std::uint32_t>(na), reverse = huge_vector<std::uint32_t>(na);
+    std::vector<Scalar> cap = huge_vector<Scalar>(na), residual = huge_vector<Scalar>(na);
     {
         std::vector<std::uint32_t> fill(offset.begin(), offset.end() - 1);
         auto pair = [&](std::size_t a, std::size_t b, Scalar c, Scalar r) {
@@ -240,8 +242,9 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
     const auto eidx = get(boost::edge_index, graph);
     // The edge index of the CSR graph is the arc's position; the reverse arc of p starts
     // at p's target.
-    std::vector<Edge> rev(na);
-    for (std::size_t p = 0; p < na; ++p) rev[p] = Edge(target[p], reverse[p]);
+    std::vector<Edge> rev;
+    reserve_huge(rev, na);
+    for (std::size_t p = 0; p < na; ++p) rev.emplace_back(target[p], reverse[p]);
     std::vector<std::uint32_t>().swap(target);
     std::vector<std::uint32_t>().swap(reverse);
     std::vector<std::uint32_t>().swap(offset);

@@ -37,6 +37,7 @@
 #include <kintsugi/core/concepts.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
+#include <kintsugi/core/memory.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/spatial/morton.hpp>
@@ -384,7 +385,9 @@ private:
         unit_ = side_ / static_cast<Scalar>(n);
 
         // 1. Morton codes of the finest cells holding each point, sorted.
-        std::vector<std::pair<std::uint64_t, Index>> keyed(pts.size());
+        std::vector<std::pair<std::uint64_t, Index>> keyed;
+        detail::reserve_huge(keyed, pts.size());
+        keyed.resize(pts.size());
         parallel_for(0, pts.size(), [&](std::size_t i) {
             const Vec3 t = (pts[i] - cube_min_) / unit_;
             std::array<std::uint32_t, 3> g{};
@@ -483,7 +486,7 @@ private:
             for (int m = 0; m < L; ++m)
                 total += 8 * internal[static_cast<std::size_t>(m)].size() -
                          (m + 1 < L ? internal[static_cast<std::size_t>(m + 1)].size() : 0);
-            cells_.reserve(total);
+            detail::reserve_huge(cells_, total);
             std::vector<std::size_t> cursor(static_cast<std::size_t>(L), 0);
             struct Frame {
                 std::uint64_t node;
@@ -519,7 +522,11 @@ private:
                     throw std::logic_error("kintsugi::Octree: an internal node without an internal parent");
         }
         std::vector<std::vector<std::uint64_t>>().swap(internal);
+        codes_.clear();
+        detail::reserve_huge(codes_, cells_.size());
         codes_.resize(cells_.size());
+        levels_.clear();
+        detail::reserve_huge(levels_, cells_.size());
         levels_.resize(cells_.size());
         for (std::size_t c = 0; c < cells_.size(); ++c) {
             codes_[c] = cells_[c].code;
@@ -540,6 +547,8 @@ private:
         }
 
         // 5. Point ranges: both sequences are in Morton order.
+        order_.clear();
+        detail::reserve_huge(order_, keyed.size());
         order_.resize(keyed.size());
         for (std::size_t i = 0; i < keyed.size(); ++i) order_[i] = keyed[i].second;
         std::size_t p = 0;

@@ -12,6 +12,7 @@
 /// Uses CGAL's Regular_triangulation_3 (GPL-3.0-or-later, Triangulation_3 package).
 
 #include <kintsugi/core/control.hpp>
+#include <kintsugi/core/memory.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/stages.hpp>
 #include <kintsugi/core/types.hpp>
@@ -86,7 +87,7 @@ inline std::vector<std::uint8_t> graphcut_labels(PUTetMesh& tm, const std::vecto
     const std::size_t nv = tm.vertices.size();
     StCutGraph g;
     g.num_nodes = nv;
-    g.capacities.resize(tm.edges.size());
+    g.capacities = huge_vector<Scalar>(tm.edges.size());
     std::vector<Scalar> len_sum(nv, 0);
     std::vector<std::uint32_t> deg(nv, 0);
     for (std::size_t e = 0; e < tm.edges.size(); ++e) {

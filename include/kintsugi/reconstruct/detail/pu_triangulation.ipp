@@ -7,6 +7,7 @@
 /// supports. Included by pu_graphcut_steps.hpp, or, with KINTSUGI_SEPARATE_STAGES, by
 /// the one file of the program that compiles it (kintsugi/core/stages.hpp).
 
+#include <kintsugi/core/memory.hpp>
 #include <kintsugi/reconstruct/detail/pu_graphcut_steps.hpp>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -99,7 +100,7 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
     out.vertices.resize(alive.size());
     for (Index k = 0; k < alive.size(); ++k) out.vertices[k] = centers[alive[k]];
     progress.update(p0 + (p1 - p0) * 0.9);
-    out.tets.reserve(rt.number_of_finite_cells());
+    reserve_huge(out.tets, rt.number_of_finite_cells());
     for (auto c : rt.finite_cell_handles())
         out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
                             vertex_of[c->vertex(2)->info()], vertex_of[c->vertex(3)->info()]});
@@ -116,7 +117,7 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
         for (const Tet& t : out.tets)
             for (const auto& e : pair) ++start[std::min(t[std::size_t(e[0])], t[std::size_t(e[1])]) + 1];
         std::partial_sum(start.begin(), start.end(), start.begin());
-        std::vector<Index> other(start[nv]);
+        std::vector<Index> other = huge_vector<Index>(start[nv]);
         {
             std::vector<std::size_t> at(start.begin(), start.end() - 1);
             for (const Tet& t : out.tets)
@@ -132,20 +133,21 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
             std::sort(b, e);
             kept[v] = static_cast<std::size_t>(std::unique(b, e) - b);
         }, 1024);
-        out.edges.reserve(std::accumulate(kept.begin(), kept.end(), std::size_t{0}));
+        reserve_huge(out.edges, std::accumulate(kept.begin(), kept.end(), std::size_t{0}));
         for (Index v = 0; v < nv; ++v)
             for (std::size_t j = 0; j < kept[v]; ++j) out.edges.push_back({v, other[start[v] + j]});
     }
     progress.update(p0 + (p1 - p0) * 0.95);
     // Tets sorted too: the output mesh then depends only on the triangulation itself.
-    for (auto& t : out.tets) {
+    parallel_for(0, out.tets.size(), [&](std::size_t i) {
+        Tet& t = out.tets[i];
         // rotate to the smallest index first keeping orientation (even permutations)
         const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
         const auto p = even_permutation(m);
         t = Tet{t[static_cast<std::size_t>(p[0])], t[static_cast<std::size_t>(p[1])],
                 t[static_cast<std::size_t>(p[2])], t[static_cast<std::size_t>(p[3])]};
-    }
-    std::sort(out.tets.begin(), out.tets.end());
+    }, 8192);
+    sort_maybe_parallel(out.tets);  // tets are distinct: the same order whatever the threads
     progress.update(p1);
     return out;
 }
