@@ -80,6 +80,13 @@
 // mean 0.0119 %, Hausdorff 0.682 %). With the spike guard of step 8 (a driver with this
 // bench's recipe, not this bench): 10M mean 0.0079 %, Hausdorff 0.667 %, truth to result
 // 0.0079 %; 2M 0.0081 / 0.632 / 0.0082 %.
+// 2026-12-04 16:00-17:00 UTC (stop 37; docs/methods/pu_graphcut.md, "2M points: time and memory"):
+// octree leaves in one walk, the octree released after the cover, a slimmer flow network, large
+// buffers on huge pages, freed memory returned before the cut; output unchanged. Runs of that hour
+// on the same VM (which varied by 30 %): 2M 27.3 s wall / 39.3 s CPU, 1182 MB; 27.7 s / 40.7 s,
+// 1182 MB; 32.0 s / 44.8 s, 1144 MB (stages pu_octree 2.51, pu_cover 8.62, pu_index 0.58,
+// triangulation 8.33, graph_cut 3.26, marching_tetrahedra 1.80, smoothing 0.11, handles 0.09,
+// refine 5.71); 100K 1.91-2.77 s, 148 MB (was 190 MB).
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff

@@ -21,6 +21,9 @@
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 namespace kintsugi::detail {
 
@@ -55,6 +58,17 @@ template <class T>
     reserve_huge(v, n);
     v.resize(n, value);
     return v;
+}
+
+/// Gives the pages of freed heap memory back to the system (glibc's malloc_trim). glibc
+/// keeps the memory of freed small blocks resident (a triangulation's cells, per-thread
+/// buffers), and the next stage's large buffers come from new pages, so both count in the
+/// peak: 2M points at level 9 had 355 MB free but resident before the graph cut (983 ->
+/// 658 MB resident after the call). A no-op on other C libraries.
+inline void release_free_memory() noexcept {
+#if defined(__GLIBC__)
+    (void)malloc_trim(0);
+#endif
 }
 
 }  // namespace kintsugi::detail

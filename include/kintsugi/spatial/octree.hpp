@@ -77,8 +77,11 @@ enum class Adjacency { face, edge, vertex, any };
 /// One leaf of the Octree.
 struct OctreeCell {
     std::uint64_t code = 0;   ///< Morton code of the minimum corner in the finest grid
-    Index point_begin = 0;    ///< first position of its points in Octree::point_indices()
-    Index point_end = 0;      ///< one past the last
+    /// First position of its points in Octree::point_indices(). 32 bits (an octree holds
+    /// fewer than 2^32 points): 24 bytes a cell instead of 32, 96 MB less for the 12M
+    /// cells of 2M points with 10 % outliers at level 9.
+    std::uint32_t point_begin = 0;
+    std::uint32_t point_end = 0;  ///< one past the last
     std::uint32_t level = 0;  ///< 0 = the whole cube, max_level = finest
 };
 
@@ -96,7 +99,7 @@ public:
     /// @param points the input; coordinates in any unit
     /// @param params max_level in [1, 12], subdivision rule, balance, optional cube
     /// @pre points non-empty and finite; with an explicit cube, every point inside it
-    /// @throws invalid_input on an empty set, a NaN/Inf coordinate, max_level outside
+    /// @throws invalid_input on an empty set (or 2^32 - 1 points or more), a NaN/Inf coordinate, max_level outside
     ///         [1, 12], a negative/NaN cube_side, or a point outside the given cube
     template <PointSet P>
     explicit Octree(const P& points, const OctreeParams& params = {}) {
@@ -348,6 +351,9 @@ private:
             throw invalid_input(std::string(fn) + ": max_level = " + std::to_string(params.max_level) +
                                 " is outside [1, 12]; pick a level between 1 and 12");
         if (pts.empty()) throw invalid_input(std::string(fn) + ": the point set is empty; pass at least one point");
+        if (pts.size() >= std::size_t{std::numeric_limits<std::uint32_t>::max()})
+            throw invalid_input(std::string(fn) + ": " + std::to_string(pts.size()) +
+                                " points; an octree holds at most 4,294,967,294 (split the input)");
         BoundingBox box;
         for (std::size_t i = 0; i < pts.size(); ++i) {
             if (!pts[i].allFinite())
@@ -554,9 +560,9 @@ private:
         std::size_t p = 0;
         for (std::size_t c = 0; c < cells_.size(); ++c) {
             const std::uint64_t end = c + 1 < cells_.size() ? cells_[c + 1].code : std::numeric_limits<std::uint64_t>::max();
-            cells_[c].point_begin = p;
+            cells_[c].point_begin = static_cast<std::uint32_t>(p);
             while (p < keyed.size() && keyed[p].first < end) ++p;
-            cells_[c].point_end = p;
+            cells_[c].point_end = static_cast<std::uint32_t>(p);
         }
     }
 

@@ -142,8 +142,10 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             }
         }, 1024);
 
-        // Step 5: labels.
+        // Step 5: labels. (The triangulation's freed cells go back to the system first:
+        // core/memory.hpp.)
         progress.stage("graph_cut", tri_end, cut_end);
+        release_free_memory();
         std::vector<std::uint8_t> inside;
         if (params.labeling == Labeling::graphcut) {
             inside = graphcut_labels(tm, f_pu, f, is_outer, params.k, res.cut_value, control);
@@ -166,12 +168,15 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
 
         // Step 6: marching tetrahedra with the same-sign rule.
         progress.stage("marching_tetrahedra", cut_end, mt_end);
+        std::vector<std::array<Index, 2>>().swap(tm.edges);  // the graph's; no later step reads them
+        release_free_memory();
         MarchingTetrahedraParams mp;
         mp.tets_positively_oriented = true;
         mp.control.stop = control.stop;
         MarchingTetrahedraResult mt = marching_tetrahedra(tm.vertices, tm.tets, inside, f_pu, mp);
         if (mt.status == Status::cancelled) throw cancelled_exception{};
         (void)place_on_zero_set(tfield, tm.vertices, f_pu, mt, mp.min_edge_fraction, 8, progress);
+        std::vector<Tet>().swap(tm.tets);
         res.same_sign_vertices = mt.same_sign_vertices;
 
         // Step 7: selective Taubin smoothing of the vertices on same-sign edges and on
