@@ -37,7 +37,6 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -138,11 +137,13 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
     const std::size_t n = g.num_nodes;
     const std::size_t src = n, snk = n + 1;
     auto tcap = [&](const std::vector<Scalar>& v, std::size_t i) { return v.empty() ? Scalar(0) : v[i]; };
+    // Capacity of edge i from b to a (the same both ways without reverse_capacities).
+    auto rcap = [&](std::size_t i) { return g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i]; };
 
     // A finite stand-in for infinite terminal capacities: larger than any cut of finite arcs.
     Scalar finite_total = 0;
     for (std::size_t i = 0; i < g.edges.size(); ++i)
-        finite_total += g.capacities[i] + (g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i]);
+        finite_total += g.capacities[i] + rcap(i);
     for (std::size_t i = 0; i < n; ++i) {
         for (Scalar c : {tcap(g.source_capacities, i), tcap(g.sink_capacities, i)})
             if (!std::isinf(c)) finite_total += c;
@@ -171,9 +172,7 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
         return (!inf_s && !inf_t) ? common : Scalar(0);
     };
     auto kept = [&](std::size_t i) {
-        const auto [a, b] = g.edges[i];
-        const Scalar r = g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i];
-        return a != b && !(g.capacities[i] == 0 && r == 0);
+        return g.edges[i][0] != g.edges[i][1] && !(g.capacities[i] == 0 && rcap(i) == 0);
     };
     std::vector<std::uint32_t> offset(nv + 1, 0);
     std::size_t na = 0;
@@ -214,8 +213,7 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
         };
         for (std::size_t i = 0; i < g.edges.size(); ++i)
             if (kept(i))
-                pair(g.edges[i][0], g.edges[i][1], g.capacities[i],
-                     g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i]);
+                pair(g.edges[i][0], g.edges[i][1], g.capacities[i], rcap(i));
         for (std::size_t i = 0; i < n; ++i) {
             Scalar cs = 0, ct = 0;
             (void)terminal(i, cs, ct);
@@ -226,19 +224,15 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
     using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_property, boost::no_property,
                                                      boost::no_property, std::uint32_t, std::uint32_t>;
     using Edge = boost::graph_traits<Graph>::edge_descriptor;
-    std::optional<Graph> graph_storage;
-    {
-        // The (source, target) pairs in CSR order, made on the fly (the source of
-        // position p is the node whose offset range holds p).
-        auto arc = [&](std::uint32_t p) {
-            const auto v = static_cast<std::uint32_t>(std::upper_bound(offset.begin(), offset.end(), p) - offset.begin() - 1);
-            return std::pair<std::uint32_t, std::uint32_t>(v, target[p]);
-        };
-        const auto first = boost::make_transform_iterator(boost::counting_iterator<std::uint32_t>(0), arc);
-        const auto last = boost::make_transform_iterator(boost::counting_iterator<std::uint32_t>(static_cast<std::uint32_t>(na)), arc);
-        graph_storage.emplace(boost::edges_are_sorted, first, last, nv);
-    }
-    Graph& graph = *graph_storage;
+    // The (source, target) pairs in CSR order, made on the fly (the source of position p
+    // is the node whose offset range holds p).
+    auto arc = [&](std::uint32_t p) {
+        const auto v = static_cast<std::uint32_t>(std::upper_bound(offset.begin(), offset.end(), p) - offset.begin() - 1);
+        return std::pair<std::uint32_t, std::uint32_t>(v, target[p]);
+    };
+    using Arcs = boost::counting_iterator<std::uint32_t>;
+    Graph graph(boost::edges_are_sorted, boost::make_transform_iterator(Arcs(0), arc),
+                boost::make_transform_iterator(Arcs(static_cast<std::uint32_t>(na)), arc), nv);
     const auto eidx = get(boost::edge_index, graph);
     // The edge index of the CSR graph is the arc's position; the reverse arc of p starts
     // at p's target.
@@ -271,9 +265,8 @@ inline StCutResult st_min_cut_impl(const StCutGraph& g, Progress& progress) {
     for (std::size_t i = 0; i < g.edges.size(); ++i) {
         const auto [a, b] = g.edges[i];
         if (a == b) continue;
-        const Scalar r = g.reverse_capacities.empty() ? g.capacities[i] : g.reverse_capacities[i];
         if (out.labels[a] == StSide::source && out.labels[b] == StSide::sink) cut += g.capacities[i];
-        if (out.labels[b] == StSide::source && out.labels[a] == StSide::sink) cut += r;
+        if (out.labels[b] == StSide::source && out.labels[a] == StSide::sink) cut += rcap(i);
     }
     for (std::size_t i = 0; i < n; ++i) {
         const Scalar cs = tcap(g.source_capacities, i), ct = tcap(g.sink_capacities, i);

@@ -391,9 +391,7 @@ private:
         unit_ = side_ / static_cast<Scalar>(n);
 
         // 1. Morton codes of the finest cells holding each point, sorted.
-        std::vector<std::pair<std::uint64_t, Index>> keyed;
-        detail::reserve_huge(keyed, pts.size());
-        keyed.resize(pts.size());
+        auto keyed = detail::huge_vector<std::pair<std::uint64_t, Index>>(pts.size());
         parallel_for(0, pts.size(), [&](std::size_t i) {
             const Vec3 t = (pts[i] - cube_min_) / unit_;
             std::array<std::uint32_t, 3> g{};
@@ -528,12 +526,8 @@ private:
                     throw std::logic_error("kintsugi::Octree: an internal node without an internal parent");
         }
         std::vector<std::vector<std::uint64_t>>().swap(internal);
-        codes_.clear();
-        detail::reserve_huge(codes_, cells_.size());
-        codes_.resize(cells_.size());
-        levels_.clear();
-        detail::reserve_huge(levels_, cells_.size());
-        levels_.resize(cells_.size());
+        codes_ = detail::huge_vector<std::uint64_t>(cells_.size());
+        levels_ = detail::huge_vector<std::uint8_t>(cells_.size());
         for (std::size_t c = 0; c < cells_.size(); ++c) {
             codes_[c] = cells_[c].code;
             levels_[c] = static_cast<std::uint8_t>(cells_[c].level);
@@ -553,9 +547,7 @@ private:
         }
 
         // 5. Point ranges: both sequences are in Morton order.
-        order_.clear();
-        detail::reserve_huge(order_, keyed.size());
-        order_.resize(keyed.size());
+        order_ = detail::huge_vector<Index>(keyed.size());
         for (std::size_t i = 0; i < keyed.size(); ++i) order_[i] = keyed[i].second;
         std::size_t p = 0;
         for (std::size_t c = 0; c < cells_.size(); ++c) {
