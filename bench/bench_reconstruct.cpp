@@ -406,13 +406,15 @@ void BM_PUGraphcut(benchmark::State& state) {
     Outcome o;
     for (auto _ : state) {
         o = run_isolated(n, [&](const ks::PointCloud& pts, ks::IndexedMesh& mesh, Outcome& c) {
-            // Peak memory per stage: the peak is read and reset at each stage's start.
+            // Peak memory per stage: the peak is read and reset at each stage's start. The
+            // "done" event a sub-run (the PU field) sends at its end is no stage of its own
+            // (counted as one, it shifted every later stage's peak by one until 2026-12-04).
             std::vector<double> peaks;
             std::string current;
             const bool can_reset = ks::bench::reset_peak_rss();
             ks::RunControl control;
             control.progress = [&](const ks::ProgressEvent& e) {
-                if (can_reset && e.stage != current) {
+                if (can_reset && e.stage != current && e.stage != "done") {
                     if (!current.empty()) peaks.push_back(peak_rss_mb());
                     current = std::string(e.stage);
                     ks::bench::reset_peak_rss();
@@ -420,6 +422,7 @@ void BM_PUGraphcut(benchmark::State& state) {
                 return true;
             };
             auto r = ks::reconstruct_pu_graphcut(pts, {.max_level = level, .control = control});
+            if (can_reset && !current.empty()) peaks.push_back(peak_rss_mb());  // the last stage's
             c.ok = r.status == ks::Status::ok ? 1 : 0;
             c.supports = static_cast<double>(r.supports);
             c.graph_nodes = static_cast<double>(r.graph_nodes);

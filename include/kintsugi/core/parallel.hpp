@@ -21,6 +21,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 #define KINTSUGI_PARALLEL_TBB 1
@@ -92,6 +93,24 @@ void parallel_for(std::size_t begin, std::size_t end, Body&& body, std::size_t g
     (void)grain;
 #endif
     for (std::size_t i = begin; i != end; ++i) body(i);
+}
+
+/// Runs `a()` and `b()`, concurrently when TBB is on and more than one thread is
+/// allowed; `a` then `b` otherwise. For a sequential step beside independent work: `b`
+/// runs on the calling thread (give it the step that reports progress), `a` on a free
+/// worker, and parallel loops inside `a` use whatever threads are free. The two must be
+/// independent (neither reads what the other writes), so the results do not depend on
+/// the threads. An exception from either is rethrown here.
+template <class A, class B>
+void parallel_invoke(A&& a, B&& b) {
+#ifdef KINTSUGI_PARALLEL_TBB
+    if (max_threads() > 1) {
+        tbb::parallel_invoke(a, b);
+        return;
+    }
+#endif
+    a();
+    b();
 }
 
 /// Deterministic reduction: splits [begin, end) into chunks of `chunk` indices

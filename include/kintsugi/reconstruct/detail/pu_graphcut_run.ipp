@@ -68,7 +68,85 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             sites.push_back(p);
             radii.push_back(0);
         }
-        PUTetMesh tm = regular_tet_mesh(sites, radii, progress, 0.0, 0.8);
+        // f at the vertices: the PU field at the support centres (eq. 1). A support
+        // holding fewer than min_support_points input points, or points whose normals
+        // disagree (an outlier's support, an empty one far from the data, a coarse one
+        // full of outliers) carries no information about inside and outside, and with
+        // many outliers such supports fill the empty space with wrong-signed values. At
+        // those vertices, and at the outer layer, the terminal links use instead the
+        // median signed distance to the tangent planes g_j of the nearest trusted
+        // supports (centroids d_j nearest; Hoppe et al. 1992 with a median, so that one
+        // trusted-looking outlier support cannot flip a region), which keeps the deep
+        // inside and outside anchored by the terminal links of eq. 8-9.
+        auto trusted_support = [&](const PUSupport& s) {
+            return s.point_count >= params.min_support_points && s.coherence >= params.min_support_coherence;
+        };
+        // The PU field with the weights of untrusted supports scaled by untrusted_weight:
+        // where a trusted support covers x it decides f(x), elsewhere the untrusted
+        // supports still define a (continuous) field. Used for eq. 10 and the vertex
+        // placement of step 6.
+        std::vector<Scalar> factors(ns);
+        for (std::size_t i = 0; i < ns; ++i)
+            factors[i] = trusted_support(sup[i]) ? Scalar(1) : params.untrusted_weight;
+        const PUField tfield = params.untrusted_weight == 1 ? field : field.reweighted(std::move(factors));
+        std::vector<Index> trusted;
+        for (std::size_t i = 0; i < ns; ++i)
+            if (trusted_support(sup[i])) trusted.push_back(i);
+        if (trusted.empty())
+            for (std::size_t i = 0; i < ns; ++i) trusted.push_back(i);
+
+        // CGAL's insertion is sequential: what needs only the sites and the data is made
+        // on the other threads meanwhile: step 8's inliers and their surface first (their
+        // memory is freed before the triangulation's peak, when its tets are listed), then
+        // the terminal values at every site (2M bench input: this stage and step 8 took
+        // 6.3 + 4.4 s, now 7.2 + 1.8 s; the stage's peak 978 -> 937 MB, that of the graph
+        // cut 1132 -> 1008 MB with the input's copy freed here; output identical).
+        const std::size_t n_sites = sites.size();
+        std::vector<Scalar> site_f(n_sites), site_f_pu(n_sites);
+        RefineData fit_data;
+        const bool refining = params.refine_spacing > 0 && params.refine_neighbors <= data_pts.size();
+        PUTetMesh tm;
+        parallel_invoke(
+            [&] {
+                if (refining) {
+                    fit_data = refine_data(tfield, data_pts, data_nrm, params.refine_neighbors, field.epsilon(),
+                                         control.stop);
+                    // The fit holds its own copy of the samples it uses; the input's is freed.
+                    std::vector<Vec3>().swap(data_pts);
+                    std::vector<Vec3>().swap(data_nrm);
+                }
+                // The paper's sign (> 0 inside) from here on: f_pu, f, the graph and the labels.
+                const std::vector<Scalar> fc =
+                    tfield.values(std::vector<Vec3>(sites.begin(), sites.begin() + static_cast<std::ptrdiff_t>(ns)));
+                std::vector<Vec3> origins(trusted.size());
+                for (std::size_t j = 0; j < trusted.size(); ++j) origins[j] = sup[trusted[j]].origin;
+                const auto origin_tree = KdTree::adopt(std::move(origins));
+                parallel_for(0, n_sites, [&](std::size_t i) {
+                    const bool outer = i >= ns;
+                    bool trust = false;
+                    if (!outer) {
+                        site_f_pu[i] = std::isnan(fc[i]) ? Scalar(0) : -fc[i];
+                        trust = trusted_support(sup[i]);
+                    }
+                    if (trust) {
+                        site_f[i] = site_f_pu[i];
+                        return;
+                    }
+                    constexpr std::size_t planes = 7;  // odd: the median is one plane's value
+                    thread_local std::vector<Neighbor> nbs;
+                    origin_tree.knn(sites[i], std::min(planes, trusted.size()), nbs);
+                    thread_local std::vector<Scalar> ds;
+                    ds.clear();
+                    for (const auto& nb : nbs) {
+                        const PUSupport& s = sup[trusted[nb.index]];
+                        ds.push_back(s.normal.dot(sites[i] - s.origin));
+                    }
+                    std::nth_element(ds.begin(), ds.begin() + ds.size() / 2, ds.end());
+                    site_f[i] = ds[ds.size() / 2];
+                    if (outer) site_f_pu[i] = std::min(site_f[i], Scalar(-1e-12));
+                }, 1024);
+            },
+            [&] { tm = regular_tet_mesh(sites, radii, progress, 0.0, 0.95); });
         const std::size_t nv = tm.vertices.size();
         // Vertices are numbered by increasing site index, so the surviving supports come
         // first (vertex v < alive_supports is support tm.site[v]) and the outer layer last.
@@ -81,66 +159,11 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         res.tetrahedra = tm.tets.size();
         res.graph_nodes = nv;
         res.graph_edges = tm.edges.size();
-
-        // f at the vertices: the PU field at the support centres (eq. 1). A support
-        // holding fewer than min_support_points input points, or points whose normals
-        // disagree (an outlier's support, an empty one far from the data, a coarse one
-        // full of outliers) carries no information about inside and outside, and with
-        // many outliers such supports fill the empty space with wrong-signed values. At
-        // those vertices, and at the outer layer, the terminal links use instead the
-        // median signed distance to the tangent planes g_j of the nearest trusted
-        // supports (centroids d_j nearest; Hoppe et al. 1992 with a median, so that one
-        // trusted-looking outlier support cannot flip a region), which keeps the deep
-        // inside and outside anchored by the terminal links of eq. 8-9.
-        const std::vector<Vec3> centers(tm.vertices.begin(),
-                                        tm.vertices.begin() + static_cast<std::ptrdiff_t>(alive_supports));
-        auto trusted_support = [&](const PUSupport& s) {
-            return s.point_count >= params.min_support_points && s.coherence >= params.min_support_coherence;
-        };
-        // The PU field with the weights of untrusted supports scaled by untrusted_weight:
-        // where a trusted support covers x it decides f(x), elsewhere the untrusted
-        // supports still define a (continuous) field. Used for eq. 10 and the vertex
-        // placement of step 6.
-        std::vector<Scalar> factors(ns);
-        for (std::size_t i = 0; i < ns; ++i)
-            factors[i] = trusted_support(sup[i]) ? Scalar(1) : params.untrusted_weight;
-        const PUField tfield = params.untrusted_weight == 1 ? field : field.reweighted(std::move(factors));
-        // The paper's sign (> 0 inside) from here on: f_pu, f, the graph and the labels.
-        std::vector<Scalar> fc = tfield.values(centers);
-        for (Scalar& v : fc) v = -v;
-        progress.update(0.9);
-        std::vector<Index> trusted;
-        for (std::size_t i = 0; i < ns; ++i)
-            if (trusted_support(sup[i])) trusted.push_back(i);
-        if (trusted.empty())
-            for (std::size_t i = 0; i < ns; ++i) trusted.push_back(i);
-        std::vector<Vec3> origins(trusted.size());
-        for (std::size_t j = 0; j < trusted.size(); ++j) origins[j] = sup[trusted[j]].origin;
-        const auto origin_tree = KdTree::adopt(std::move(origins));
         std::vector<Scalar> f(nv), f_pu(nv);
-        parallel_for(0, nv, [&](std::size_t v) {
-            bool trust = false;
-            if (!is_outer[v]) {
-                f_pu[v] = std::isnan(fc[v]) ? Scalar(0) : fc[v];
-                trust = trusted_support(sup[tm.site[v]]);
-            }
-            if (trust) {
-                f[v] = f_pu[v];
-            } else {
-                constexpr std::size_t planes = 7;  // odd: the median is one plane's value
-                thread_local std::vector<Neighbor> nbs;
-                origin_tree.knn(tm.vertices[v], std::min(planes, trusted.size()), nbs);
-                thread_local std::vector<Scalar> ds;
-                ds.clear();
-                for (const auto& nb : nbs) {
-                    const PUSupport& s = sup[trusted[nb.index]];
-                    ds.push_back(s.normal.dot(tm.vertices[v] - s.origin));
-                }
-                std::nth_element(ds.begin(), ds.begin() + ds.size() / 2, ds.end());
-                f[v] = ds[ds.size() / 2];
-                if (is_outer[v]) f_pu[v] = std::min(f[v], Scalar(-1e-12));
-            }
-        }, 1024);
+        for (std::size_t v = 0; v < nv; ++v) {
+            f[v] = site_f[tm.site[v]];
+            f_pu[v] = site_f_pu[tm.site[v]];
+        }
 
         // Step 5: labels. (The triangulation's freed cells go back to the system first:
         // core/memory.hpp.)
@@ -227,10 +250,9 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         }
         // Step 8 (ours): detail at the samples' resolution (refine_spacing).
         progress.stage("refine", handles_end, 1.0);
-        if (params.refine_spacing > 0 && params.refine_neighbors <= data_pts.size()) {
-            const RefineStats rs = refine_to_samples(mt.mesh, tfield, data_pts, data_nrm, params.refine_spacing,
-                                                     params.refine_neighbors, field.epsilon(), sup, trusted,
-                                                     params.fill_radius_fraction, progress);
+        if (refining) {
+            const RefineStats rs = refine_to_samples(mt.mesh, fit_data, tfield, params.refine_spacing, field.epsilon(),
+                                                     sup, trusted, params.fill_radius_fraction, progress);
             res.refined_vertices = rs.projected;
             res.refine_noise_ratio = rs.noise_ratio;
             res.refine_neighbors_used = rs.neighbors;

@@ -318,23 +318,29 @@ struct RefineStats {
 /// Deterministic: the groups depend on the samples alone (sorted by column, position
 /// and index). About 1.3 (h / s)^2 samples per group at spacing s.
 /// @param min_count groups with fewer samples are dropped (>= 1)
+/// @param subset when given, only these samples (increasing indices into pts) are grouped
 /// @return the means and their unit normals, in column order; groups whose normals
 ///         cancel or that hold fewer than min_count samples are dropped
 inline std::pair<std::vector<Vec3>, std::vector<Vec3>> column_means(const std::vector<Vec3>& pts,
                                                                       const std::vector<Vec3>& normals, Scalar h,
-                                                                      std::size_t min_count = 1) {
+                                                                      std::size_t min_count = 1,
+                                                                      const std::vector<Index>* subset = nullptr) {
+    const std::size_t n = subset ? subset->size() : pts.size();
+    auto member = [&](std::size_t j) -> std::size_t { return subset ? (*subset)[j] : j; };
     BoundingBox box;
-    for (const Vec3& p : pts) box.extend(p);
+    for (std::size_t j = 0; j < n; ++j) box.extend(pts[member(j)]);
     // Cell coordinates must fit in 64 bits: otherwise (h below 2^-50 of the extent) every
     // sample is its own group.
     if (!(h > 0) || !(box.extent().maxCoeff() / h < Scalar(1125899906842624))) {
         std::pair<std::vector<Vec3>, std::vector<Vec3>> all{{}, {}};
         if (min_count > 1) return all;
-        for (std::size_t i = 0; i < pts.size(); ++i)
+        for (std::size_t j = 0; j < n; ++j) {
+            const std::size_t i = member(j);
             if (normals[i].squaredNorm() > 0) {
                 all.first.push_back(pts[i]);
                 all.second.push_back(normals[i].normalized());
             }
+        }
         return all;
     }
     struct Keyed {
@@ -345,14 +351,15 @@ inline std::pair<std::vector<Vec3>, std::vector<Vec3>> column_means(const std::v
             return column != o.column ? column < o.column : along != o.along ? along < o.along : i < o.i;
         }
     };
-    std::vector<Keyed> keyed(pts.size());
-    parallel_for(0, pts.size(), [&](std::size_t i) {
+    std::vector<Keyed> keyed(n);
+    parallel_for(0, n, [&](std::size_t j) {
+        const std::size_t i = member(j);
         const Vec3 g = ((pts[i] - box.min) / h).array().floor();
-        const Vec3& n = normals[i];
+        const Vec3& nr = normals[i];
         int axis = 0;
-        n.cwiseAbs().maxCoeff(&axis);
+        nr.cwiseAbs().maxCoeff(&axis);
         const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-        keyed[i] = {{2 * axis + (n[axis] < 0 ? 1 : 0), static_cast<std::int64_t>(g[u]), static_cast<std::int64_t>(g[v])},
+        keyed[j] = {{2 * axis + (nr[axis] < 0 ? 1 : 0), static_cast<std::int64_t>(g[u]), static_cast<std::int64_t>(g[v])},
                     pts[i][axis],
                     static_cast<Index>(i)};
     }, 4096);
@@ -406,16 +413,28 @@ inline std::pair<std::vector<Vec3>, std::vector<Vec3>> column_means(const std::v
 /// 5. The other new vertices (hole fills) take bi-Laplacian positions (bilaplacian_fill)
 ///    between the projected ones and the coarse ones left where step 7 put them.
 /// 6. A triangle made degenerate has its corners put back (see the end).
+/// Steps 1-2 need no mesh (refine_data, made while the triangulation runs); steps 3-6
+/// are refine_to_samples.
+///
+/// The data side of step 8: the inliers' MLS surface, their spacing and the noise.
+struct RefineData {
+    std::optional<PointSetSurface> mls;  ///< the fit's samples and surface; empty: too few inliers
+    std::vector<Scalar> spacing;         ///< s of each of mls's samples (its tree's order)
+    RefineStats stats;                   ///< noise_ratio and neighbors (projected 0)
+};
+
+/// @brief Steps 1-2 of step 8 (see refine_to_samples). Polls `stop` only, reports no
+/// progress: it runs beside the triangulation, off the calling thread.
 /// @param outward_normals the input normals, pointing outward
-/// @return the vertices moved onto the data (MLS surface or field), the noise estimate and
-///         the fit's neighbours; projected 0, the mesh unchanged, when fewer than 2 k
-///         points are inliers or flat faces could not be mended
-inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, const std::vector<Vec3>& pts,
-                                      const std::vector<Vec3>& outward_normals, Scalar spacing, std::size_t k,
-                                      Scalar band, const std::vector<PUSupport>& sup,
-                                      const std::vector<Index>& trusted, Scalar fill_fraction, Progress& progress) {
-    RefineStats stats;
-    std::size_t& projected = stats.projected;
+/// @return mls empty when fewer than max(2 k, 16) points are inliers
+inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts,
+                              const std::vector<Vec3>& outward_normals, std::size_t k, Scalar band,
+                              const std::stop_token& stop) {
+    RefineData data;
+    RefineStats& stats = data.stats;
+    auto check = [&] {
+        if (stop.stop_requested()) throw cancelled_exception{};
+    };
     // 1. Inliers.
     std::vector<std::uint8_t> near(pts.size(), 0);
     parallel_for(0, pts.size(), [&](std::size_t i) {
@@ -424,18 +443,23 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
         const Scalar gn = g.norm();
         near[i] = std::isfinite(v) && gn > 0 && std::abs(v) <= band * gn && g.dot(outward_normals[i]) > 0;
     }, 1024);
-    std::vector<Vec3> ip, in;
+    // The inliers by index, and their positions in a kd-tree that holds them (no
+    // further copy: this runs beside the triangulation, whose memory is the stage's
+    // largest; the grouping below reads the input through the indices).
+    std::vector<Index> sel;
+    sel.reserve(static_cast<std::size_t>(std::count(near.begin(), near.end(), std::uint8_t{1})));
     for (std::size_t i = 0; i < pts.size(); ++i)
-        if (near[i]) {
-            ip.push_back(pts[i]);
-            in.push_back(outward_normals[i]);
-        }
-    if (ip.size() < std::max<std::size_t>(2 * k, 16) || mesh.faces.empty()) return stats;
-    progress.check();
-    // Tolerance 1e-3 x h: the vertices start within a chord's error of the surface;
-    // the same distances as 1e-4 to 1e-4 % of the diagonal at 80 % of the time (bunny00).
-    std::optional<PointSetSurface> mls(std::in_place, with_normals(ip, in),
-                                       PointSetSurfaceParams{.k = k, .tolerance = 1e-3});
+        if (near[i]) sel.push_back(static_cast<Index>(i));
+    std::vector<std::uint8_t>().swap(near);
+    if (sel.size() < std::max<std::size_t>(2 * k, 16)) return data;
+    std::optional<KdTree> inliers;
+    {
+        std::vector<Vec3> ip(sel.size());
+        for (std::size_t j = 0; j < sel.size(); ++j) ip[j] = pts[sel[j]];
+        inliers.emplace(KdTree::adopt(std::move(ip)));
+    }
+    const std::vector<Vec3>& ip = inliers->points();
+    check();
     // 2. Spacing, and the noise: each inlier's offset along its normal from the centroid
     // of itself and its 8 nearest inliers.
     constexpr std::size_t ring = 8;
@@ -448,12 +472,17 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
     parallel_for(0, n_est, [&](std::size_t j) {
         thread_local std::vector<Neighbor> nb;
         const std::size_t i = j * stride;
-        mls->tree().knn(ip[i], ring + 1, nb);
+        inliers->knn(ip[i], ring + 1, nb);
         s_est[j] = std::sqrt(nb.back().squared_distance) * disk;
         Vec3 c = Vec3::Zero();
-        for (const auto& q : nb) c += mls->tree().point(q.index);
-        off[j] = std::abs(in[i].normalized().dot(ip[i] - c / static_cast<Scalar>(nb.size())));
+        for (const auto& q : nb) c += inliers->point(q.index);
+        off[j] = std::abs(outward_normals[sel[i]].normalized().dot(ip[i] - c / static_cast<Scalar>(nb.size())));
     }, 1024);
+    // The fit's samples: the inliers, or the means of groups of them (below). Tolerance
+    // 1e-3 x h: the vertices start within a chord's error of the surface; the same
+    // distances as 1e-4 to 1e-4 % of the diagonal at 80 % of the time (bunny00).
+    std::optional<PointSetSurface>& mls = data.mls;
+    std::size_t fit_k = k;
     stats.neighbors = k;
     bool grouped = false;
     {
@@ -476,7 +505,7 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
             stats.noise_ratio = sigma / s_med;
             const Scalar want = std::ceil(Scalar(400) * (sigma / s_med) * (sigma / s_med));
             const std::size_t k2 = std::min<std::size_t>(
-                ip.size(), static_cast<std::size_t>(std::min(want, static_cast<Scalar>(16 * k))));
+                sel.size(), static_cast<std::size_t>(std::min(want, static_cast<Scalar>(16 * k))));
             if (k2 > k) {
                 stats.neighbors = k2;
                 const Scalar h = s_med * std::sqrt(static_cast<Scalar>(k2) / static_cast<Scalar>(k) / Scalar(1.3));
@@ -487,32 +516,58 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const PUField& field, co
                 // 0.63 %, its largest errors in the holes and off them gone).
                 const auto min_count = static_cast<std::size_t>(
                     std::max<Scalar>(1, std::round(Scalar(0.5) * static_cast<Scalar>(k2) / static_cast<Scalar>(k))));
-                auto [ap, an] = column_means(ip, in, h, min_count);
+                inliers.reset();
+                const auto [ap, an] = column_means(pts, outward_normals, h, min_count, &sel);
                 if (ap.size() >= std::max<std::size_t>(2 * k, 16)) {
-                    ip = std::move(ap);
-                    in = std::move(an);
                     grouped = true;
-                    mls.emplace(with_normals(ip, in), PointSetSurfaceParams{.k = k, .tolerance = 1e-3});
+                    mls.emplace(with_normals(ap, an), PointSetSurfaceParams{.k = k, .tolerance = 1e-3});
                 } else {
                     // Too few groups to fit (a small, noisy part): k2 raw samples per fit.
-                    mls.emplace(with_normals(ip, in), PointSetSurfaceParams{.k = k2, .tolerance = 1e-3});
+                    fit_k = k2;
                 }
             }
         }
     }
-    const KdTree& tree = mls->tree();
+    if (!grouped) {
+        inliers.reset();
+        std::vector<Vec3> fp(sel.size()), fn(sel.size());
+        for (std::size_t j = 0; j < sel.size(); ++j) {
+            fp[j] = pts[sel[j]];
+            fn[j] = outward_normals[sel[j]];
+        }
+        mls.emplace(with_normals(fp, fn), PointSetSurfaceParams{.k = fit_k, .tolerance = 1e-3});
+    }
+    check();
     // The spacing of every fit sample: the estimate's own when it read all of them.
-    std::vector<Scalar> sq;
+    std::vector<Scalar>& sq = data.spacing;
     if (!grouped && stride == 1) {
         sq = std::move(s_est);
     } else {
-        sq.resize(ip.size());
-        parallel_for(0, ip.size(), [&](std::size_t i) {
+        const KdTree& tree = mls->tree();
+        sq.resize(tree.size());
+        parallel_for(0, tree.size(), [&](std::size_t i) {
             thread_local std::vector<Neighbor> nb;
-            tree.knn(ip[i], ring + 1, nb);
+            tree.knn(tree.point(i), ring + 1, nb);
             sq[i] = std::sqrt(nb.back().squared_distance) * disk;
         }, 1024);
     }
+    return data;
+}
+
+/// @brief Steps 3-6 of step 8 (see above), on the data refine_data made.
+/// @return the vertices moved onto the data (MLS surface or field), the noise estimate and
+///         the fit's neighbours; all 0, the mesh unchanged, when data has no surface (too
+///         few inliers) or the mesh no face; projected 0, the mesh unchanged, when flat
+///         faces could not be mended
+inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, const PUField& field,
+                                      Scalar spacing, Scalar band, const std::vector<PUSupport>& sup,
+                                      const std::vector<Index>& trusted, Scalar fill_fraction, Progress& progress) {
+    if (!data.mls || mesh.faces.empty()) return {};
+    RefineStats stats = data.stats;
+    std::size_t& projected = stats.projected;
+    const std::optional<PointSetSurface>& mls = data.mls;
+    const KdTree& tree = mls->tree();
+    const std::vector<Scalar>& sq = data.spacing;
     progress.update(0.1);
     // 3. Split and flip.
     const std::size_t nv0 = mesh.vertices.size();
