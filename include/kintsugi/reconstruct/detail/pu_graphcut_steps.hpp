@@ -30,6 +30,7 @@
 #include <kintsugi/metrics/topology_report.hpp>
 #include <kintsugi/reconstruct/pu_field.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
+#include <kintsugi/spatial/morton.hpp>
 
 
 #include <algorithm>
@@ -436,13 +437,18 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
         if (stop.stop_requested()) throw cancelled_exception{};
     };
     // 1. Inliers.
+    // In Morton order (the input's own order can be anything): nearby evaluations read
+    // nearby memory of the field.
     std::vector<std::uint8_t> near(pts.size(), 0);
-    parallel_for(0, pts.size(), [&](std::size_t i) {
+    std::vector<Index> along = morton_order(pts);
+    parallel_for(0, pts.size(), [&](std::size_t j) {
+        const std::size_t i = along[j];
         Vec3 g;
         const Scalar v = field.value_and_gradient(pts[i], g);
         const Scalar gn = g.norm();
         near[i] = std::isfinite(v) && gn > 0 && std::abs(v) <= band * gn && g.dot(outward_normals[i]) > 0;
     }, 1024);
+    std::vector<Index>().swap(along);
     // The inliers by index, and their positions in a kd-tree that holds them (no
     // further copy: this runs beside the triangulation, whose memory is the stage's
     // largest; the grouping below reads the input through the indices).
