@@ -109,6 +109,7 @@
 #include "common.hpp"
 
 #include <kintsugi/adapters/cgal.hpp>
+#include <kintsugi/core/memory.hpp>
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/metrics/distance.hpp>
@@ -477,6 +478,10 @@ void print_summary() {
         std::getline(la, l);
         std::printf("Load average at the end: %s (2 cores shared: wall times grow with the load, CPU times much less)\n",
                     l.c_str());
+        const char* t = std::getenv("GLIBC_TUNABLES");
+        std::printf("Allocator: %s\n", t != nullptr && std::strstr(t, "glibc.malloc.hugetlb=1") != nullptr
+                                             ? "glibc on huge pages (use_huge_page_malloc)"
+                                             : "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)");
     }
     auto cell = [](const Outcome* o, double v, const char* fmt) {
         char buf[64];
@@ -534,5 +539,8 @@ BENCHMARK(BM_CGALPoisson)->Args({2000000, 0})->Unit(benchmark::kSecond)->UseManu
 BENCHMARK(BM_PUGraphcut)->Args({10000000, 10})->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1);
 
 int main(int argc, char** argv) {
+    // glibc's allocator on huge pages, as the kintsugi CLI runs (KINTSUGI_NO_HUGE_PAGES=1:
+    // the library's default, as a program that does not call it gets).
+    ks::use_huge_page_malloc(argv);
     return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter&) { print_summary(); });
 }

@@ -6,12 +6,15 @@
 #include "common.hpp"
 
 #include <kintsugi/core/error.hpp>
+#include <kintsugi/core/memory.hpp>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <iostream>
 #include <new>
@@ -238,6 +241,8 @@ void Context::add_timing(const std::string& stage, double seconds) { json_["timi
 }  // namespace kcli
 
 int main(int argc, char** argv) {
+    // Large inputs: glibc's allocator on huge pages (re-executes once; core/memory.hpp).
+    kintsugi::use_huge_page_malloc(argv);
     using namespace kcli;
     const SignalWatcher watcher;
 
@@ -274,6 +279,11 @@ int main(int argc, char** argv) {
             return 2;
         }
         const kintsugi::ThreadLimit limit(ctx.common.threads);
+        {
+            // Whether glibc's allocator runs on huge pages (use_huge_page_malloc above).
+            const char* t = std::getenv("GLIBC_TUNABLES");
+            ctx.json()["huge_page_malloc"] = t != nullptr && std::strstr(t, "glibc.malloc.hugetlb=1") != nullptr;
+        }
         for (auto& [sub, action] : actions)
             if (sub->parsed()) {
                 action();
