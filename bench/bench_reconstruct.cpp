@@ -86,7 +86,19 @@
 // on the same VM (which varied by 30 %): 2M 27.3 s wall / 39.3 s CPU, 1182 MB; 27.7 s / 40.7 s,
 // 1182 MB; 32.0 s / 44.8 s, 1144 MB (stages pu_octree 2.51, pu_cover 8.62, pu_index 0.58,
 // triangulation 8.33, graph_cut 3.26, marching_tetrahedra 1.80, smoothing 0.11, handles 0.09,
-// refine 5.71); 100K 1.91-2.77 s, 148 MB (was 190 MB).
+// refine 5.71); 100K 1.91-2.77 s, 148 MB (was 190 MB). (The per-stage peaks printed until
+// then were shifted by one stage: the PU field's "done" event counted as a stage. The run's
+// peak was right.)
+// 2026-12-04 19:20 UTC (stop 38; docs/methods/pu_graphcut.md, "2M points: concurrency, Morton
+// order, huge pages"): step 8's data side and the terminal values made during CGAL's insertion,
+// in Morton order; output unchanged. Without use_huge_page_malloc (KINTSUGI_NO_HUGE_PAGES=1):
+// 2M 25.46 s / 41.16 s CPU, 1035 MB and 24.92 s / 39.64 s, 1035 MB (stages pu_octree 1.58 / 791,
+// pu_cover 8.21 / 1035, pu_index 0.47 / 683, triangulation 6.48 / 941, graph_cut 3.40 / 1013,
+// marching_tetrahedra 1.69 / 894, smoothing 0.19, handles 0.09, refine 2.00 / 649); 100K 2.47 s,
+// 119 MB. With it (this program's default): 2M 21.25 s / 35.30 s, 1037 MB and 20.94 s / 35.86 s,
+// 1111 MB (pu_octree 1.55, pu_cover 8.18, pu_index 0.18, triangulation 6.14 / 1111, graph_cut
+// 1.91, marching_tetrahedra 0.91, refine 1.72); 100K 2.16 s, 121 MB. 10M with the concurrency
+// only (no Morton order, default allocator): 127.0 s / 202.4 s CPU, 5066 MB (pu_cover's).
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
