@@ -218,10 +218,15 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
     std::vector<std::uint8_t> found(n, 0);
     const std::size_t block = 4096;
     const EdgeRootParams rp{.samples = samples};
+    // The edges in Morton order of their first end (the mesh's vertices come in the order
+    // of the tets, whose vertices are numbered by support, in the cover's random order):
+    // nearby searches read nearby memory of the field.
+    const std::vector<Index> along = morton_order(mt.mesh.vertices);
     for (std::size_t b0 = 0; b0 < n; b0 += 16 * block) {
         progress.update(static_cast<double>(b0) / static_cast<double>(std::max<std::size_t>(n, 1)));
         const std::size_t b1 = std::min(n, b0 + 16 * block);
-        parallel_for(b0, b1, [&](std::size_t i) {
+        parallel_for(b0, b1, [&](std::size_t j) {
+            const std::size_t i = along[j];
             // Plain variables, not a structured binding: the nested lambda below
             // captures them, which clang before 16 rejects for bindings.
             const Index a = mt.vertex_edges[i][0], b = mt.vertex_edges[i][1];
@@ -268,6 +273,7 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
     for (const Index i : ids)
         if (sup[i].radius > 0) by_band.emplace_back(static_cast<int>(std::floor(std::log2(sup[i].radius))), i);
     std::sort(by_band.begin(), by_band.end());
+    const std::vector<Index> along = morton_order(x);  // nearby queries, nearby memory
     std::size_t b0 = 0;
     while (b0 < by_band.size()) {
         if (stop.stop_requested()) throw cancelled_exception{};
@@ -281,7 +287,8 @@ inline void mark_unsupported(const std::vector<Vec3>& x, const std::vector<PUSup
         }
         const Scalar rmax = fraction * std::ldexp(Scalar(1), by_band[b0].first + 1);
         const auto tree = KdTree::adopt(std::move(centres));
-        parallel_for(0, x.size(), [&](std::size_t i) {
+        parallel_for(0, x.size(), [&](std::size_t j) {
+            const std::size_t i = along[j];
             if (!out[i]) return;
             thread_local std::vector<Neighbor> nb;
             tree.radius_search_squared(x[i], rmax * rmax, nb, false);
@@ -609,9 +616,11 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
     const std::vector<Vec3> nx = vertex_normals(work);
     const Scalar reach = 4 * band;
     const std::size_t blocks = std::clamp<std::size_t>(x.size() / 4096, 1, 40);
+    const std::vector<Index> along = morton_order(x);  // nearby vertices, nearby memory
     for (std::size_t b = 0; b < blocks; ++b) {
         progress.update(0.5 + 0.5 * static_cast<double>(b) / static_cast<double>(blocks));
-        parallel_for(x.size() * b / blocks, x.size() * (b + 1) / blocks, [&](std::size_t v) {
+        parallel_for(x.size() * b / blocks, x.size() * (b + 1) / blocks, [&](std::size_t j) {
+            const std::size_t v = along[j];
             // Newton steps onto the zero set of the field first (the mesh of steps 6-7
             // can lie off it: same-sign and hole-fill vertices), at most `reach` in all.
             Vec3 y = x[v];
