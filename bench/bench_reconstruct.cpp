@@ -99,6 +99,11 @@
 // 1111 MB (pu_octree 1.55, pu_cover 8.18, pu_index 0.18, triangulation 6.14 / 1111, graph_cut
 // 1.91, marching_tetrahedra 0.91, refine 1.72); 100K 2.16 s, 121 MB. 10M with the concurrency
 // only (no Morton order, default allocator): 127.0 s / 202.4 s CPU, 5066 MB (pu_cover's).
+// 20:40 UTC, every change of stop 38 (huge-page malloc): 100K 1.61 s / 2.65 s, 124 MB; 2M
+// 19.43 s / 32.99 s, 1111 MB (pu_octree 1.55, pu_cover 7.80 / 1036, pu_index 0.16, triangulation
+// 5.50 / 1111, graph_cut 1.55, marching_tetrahedra 0.83, refine 1.43); 10M 85.57 s / 140.05 s,
+// 5071 MB (pu_octree 9.00 / 4321, pu_cover 36.79 / 5071, triangulation 20.63 / 3985, graph_cut
+// 6.97, marching_tetrahedra 3.26, refine 6.22); mean 0.0079 %, Hausdorff 0.667 % (unchanged).
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
