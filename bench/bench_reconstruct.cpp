@@ -495,8 +495,7 @@ void print_summary() {
         std::getline(la, l);
         std::printf("Load average at the end: %s (2 cores shared: wall times grow with the load, CPU times much less)\n",
                     l.c_str());
-        const char* t = std::getenv("GLIBC_TUNABLES");
-        std::printf("Allocator: %s\n", t != nullptr && std::strstr(t, "glibc.malloc.hugetlb=1") != nullptr
+        std::printf("Allocator: %s\n", ks::huge_page_malloc_on()
                                              ? "glibc on huge pages (use_huge_page_malloc)"
                                              : "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)");
     }

@@ -13,8 +13,6 @@
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <ctime>
 #include <iostream>
 #include <new>
@@ -279,11 +277,7 @@ int main(int argc, char** argv) {
             return 2;
         }
         const kintsugi::ThreadLimit limit(ctx.common.threads);
-        {
-            // Whether glibc's allocator runs on huge pages (use_huge_page_malloc above).
-            const char* t = std::getenv("GLIBC_TUNABLES");
-            ctx.json()["huge_page_malloc"] = t != nullptr && std::strstr(t, "glibc.malloc.hugetlb=1") != nullptr;
-        }
+        ctx.json()["huge_page_malloc"] = kintsugi::huge_page_malloc_on();  // use_huge_page_malloc above
         for (auto& [sub, action] : actions)
             if (sub->parsed()) {
                 action();

@@ -80,6 +80,13 @@ inline void release_free_memory() noexcept {
 
 namespace kintsugi {
 
+/// Whether glibc's allocator runs on transparent huge pages in this process (GLIBC_TUNABLES
+/// holds glibc.malloc.hugetlb=1, as use_huge_page_malloc sets it); what a program reports.
+[[nodiscard]] inline bool huge_page_malloc_on() noexcept {
+    const char* tunables = std::getenv("GLIBC_TUNABLES");
+    return tunables != nullptr && std::strstr(tunables, "glibc.malloc.hugetlb=1") != nullptr;
+}
+
 /// @brief For programs, called first in main: on Linux with glibc, runs the program
 /// again (execv of /proc/self/exe, same arguments) with glibc's allocator on
 /// transparent huge pages (GLIBC_TUNABLES=glibc.malloc.hugetlb=1, read only at start),

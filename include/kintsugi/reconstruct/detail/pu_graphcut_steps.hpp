@@ -218,9 +218,9 @@ std::size_t place_on_zero_set(const Field& field, const std::vector<Vec3>& tet_v
     std::vector<std::uint8_t> found(n, 0);
     const std::size_t block = 4096;
     const EdgeRootParams rp{.samples = samples};
-    // The edges in Morton order of their first end (the mesh's vertices come in the order
-    // of the tets, whose vertices are numbered by support, in the cover's random order):
-    // nearby searches read nearby memory of the field.
+    // The vertices in Morton order of their marching-tetrahedra positions (they come in the
+    // order of the tets, whose vertices are numbered by support, in the cover's random
+    // order): nearby searches read nearby memory of the field.
     const std::vector<Index> along = morton_order(mt.mesh.vertices);
     for (std::size_t b0 = 0; b0 < n; b0 += 16 * block) {
         progress.update(static_cast<double>(b0) / static_cast<double>(std::max<std::size_t>(n, 1)));
@@ -465,12 +465,12 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
         if (near[i]) sel.push_back(static_cast<Index>(i));
     std::vector<std::uint8_t>().swap(near);
     if (sel.size() < std::max<std::size_t>(2 * k, 16)) return data;
-    std::optional<KdTree> inliers;
-    {
-        std::vector<Vec3> ip(sel.size());
-        for (std::size_t j = 0; j < sel.size(); ++j) ip[j] = pts[sel[j]];
-        inliers.emplace(KdTree::adopt(std::move(ip)));
-    }
+    auto selected = [&](const std::vector<Vec3>& all) {
+        std::vector<Vec3> out(sel.size());
+        for (std::size_t j = 0; j < sel.size(); ++j) out[j] = all[sel[j]];
+        return out;
+    };
+    std::optional<KdTree> inliers(KdTree::adopt(selected(pts)));
     const std::vector<Vec3>& ip = inliers->points();
     check();
     // 2. Spacing, and the noise: each inlier's offset along its normal from the centroid
@@ -543,11 +543,7 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     }
     if (!grouped) {
         inliers.reset();
-        std::vector<Vec3> fp(sel.size()), fn(sel.size());
-        for (std::size_t j = 0; j < sel.size(); ++j) {
-            fp[j] = pts[sel[j]];
-            fn[j] = outward_normals[sel[j]];
-        }
+        std::vector<Vec3> fp = selected(pts), fn = selected(outward_normals);
         mls.emplace(with_normals(fp, fn), PointSetSurfaceParams{.k = fit_k, .tolerance = 1e-3});
     }
     check();
