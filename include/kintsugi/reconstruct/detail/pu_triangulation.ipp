@@ -21,6 +21,10 @@
 #include <CGAL/property_map.h>
 #include <CGAL/spatial_sort.h>
 
+#include <array>
+#include <cstdint>
+#include <limits>
+
 namespace kintsugi::detail {
 
 /// Regular triangulation of weighted sites (centre, weight = radius²) with CGAL.
@@ -29,8 +33,11 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
                                           Progress& progress, double p0, double p1) {
     using K = CGAL::Exact_predicates_inexact_constructions_kernel;
     using Vb = CGAL::Triangulation_vertex_base_with_info_3<Index, K, CGAL::Regular_triangulation_vertex_base_3<K>>;
+    // Hidden points are discarded, so the cells need no container for them: an empty
+    // std::array instead of the default std::list makes a cell 72 bytes instead of 96
+    // (72 MB less at the stage's peak for the 3M cells of the 2M bench input).
     using Cb = CGAL::Regular_triangulation_cell_base_3<K, CGAL::Triangulation_cell_base_3<K>,
-                                                       CGAL::Discard_hidden_points>;
+                                                       CGAL::Discard_hidden_points, std::array<K::Weighted_point_3, 0>>;
     using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
     using RT = CGAL::Regular_triangulation_3<K, Tds>;
     using WP = K::Weighted_point_3;
@@ -100,12 +107,31 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
     out.vertices.resize(alive.size());
     for (Index k = 0; k < alive.size(); ++k) out.vertices[k] = centers[alive[k]];
     progress.update(p0 + (p1 - p0) * 0.9);
-    reserve_huge(out.tets, rt.number_of_finite_cells());
-    for (auto c : rt.finite_cell_handles())
-        out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
-                            vertex_of[c->vertex(2)->info()], vertex_of[c->vertex(3)->info()]});
-    rt.clear();  // the triangulation's cells are the stage's largest memory
-    std::vector<Index>().swap(vertex_of);
+    // The tets are listed in 32 bits while the triangulation is alive (its cells are the
+    // stage's largest memory), and widened once it is cleared: 48 MB less at the peak
+    // for the 3M tets of the 2M bench input.
+    if (alive.size() <= std::numeric_limits<std::uint32_t>::max()) {
+        std::vector<std::array<std::uint32_t, 4>> narrow;
+        reserve_huge(narrow, rt.number_of_finite_cells());
+        for (auto c : rt.finite_cell_handles())
+            narrow.push_back({static_cast<std::uint32_t>(vertex_of[c->vertex(0)->info()]),
+                              static_cast<std::uint32_t>(vertex_of[c->vertex(1)->info()]),
+                              static_cast<std::uint32_t>(vertex_of[c->vertex(2)->info()]),
+                              static_cast<std::uint32_t>(vertex_of[c->vertex(3)->info()])});
+        rt.clear();
+        std::vector<Index>().swap(vertex_of);
+        out.tets = huge_vector<Tet>(narrow.size());
+        parallel_for(0, narrow.size(), [&](std::size_t i) {
+            for (std::size_t k = 0; k < 4; ++k) out.tets[i][k] = narrow[i][k];
+        }, 8192);
+    } else {
+        reserve_huge(out.tets, rt.number_of_finite_cells());
+        for (auto c : rt.finite_cell_handles())
+            out.tets.push_back({vertex_of[c->vertex(0)->info()], vertex_of[c->vertex(1)->info()],
+                                vertex_of[c->vertex(2)->info()], vertex_of[c->vertex(3)->info()]});
+        rt.clear();
+        std::vector<Index>().swap(vertex_of);
+    }
     // Edges from the tets' vertex pairs, gathered per smaller vertex (a counting sort),
     // then sorted and made unique per vertex: the same sorted list as CGAL's finite-edge
     // iterator gives, which circulates around each edge from every cell to report it once
