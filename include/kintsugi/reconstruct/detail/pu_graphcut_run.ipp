@@ -179,6 +179,11 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             f[v] = site_f[tm.site[v]];
             f_pu[v] = site_f_pu[tm.site[v]];
         }
+        // Per site, not read again (30 MB at 2M points).
+        std::vector<Vec3>().swap(sites);
+        std::vector<Scalar>().swap(radii);
+        std::vector<Scalar>().swap(site_f);
+        std::vector<Scalar>().swap(site_f_pu);
 
         // Step 5: labels. (The triangulation's freed cells go back to the system first:
         // core/memory.hpp.)
@@ -211,10 +216,13 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         MarchingTetrahedraParams mp;
         mp.tets_positively_oriented = true;
         mp.control.stop = control.stop;
-        MarchingTetrahedraResult mt = marching_tetrahedra(tm.vertices, tm.tets, inside, f_pu, mp);
+        MarchingTetrahedraResult mt;
+        {
+            const std::vector<Tet> tets = widened_tets(tm);
+            mt = marching_tetrahedra(tm.vertices, tets, inside, f_pu, mp);
+        }
         if (mt.status == Status::cancelled) throw cancelled_exception{};
         (void)place_on_zero_set(tfield, tm.vertices, f_pu, mt, mp.min_edge_fraction, 8, progress);
-        std::vector<Tet>().swap(tm.tets);
         res.same_sign_vertices = mt.same_sign_vertices;
 
         // Step 7: selective Taubin smoothing of the vertices on same-sign edges and on
