@@ -483,8 +483,18 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
         for (std::size_t j = 0; j < sel.size(); ++j) out[j] = all[sel[j]];
         return out;
     };
-    std::optional<KdTree> inliers(KdTree::adopt(selected(pts)));
-    const std::vector<Vec3>& ip = inliers->points();
+    // The tree holds them in Morton order, and the estimates below query it in Morton
+    // order: in the input's order (any order) each query read scattered memory (2M
+    // bench input, random order: 262K queries 1.21 s, the tree 0.55 s).
+    const MortonBox box(pts);
+    std::optional<KdTree> inliers;
+    {
+        const std::vector<Index> mo =
+            morton_order(sel.size(), box, [&](std::size_t j) -> const Vec3& { return pts[sel[j]]; });
+        std::vector<Vec3> tp(sel.size());
+        for (std::size_t t = 0; t < tp.size(); ++t) tp[t] = pts[sel[mo[t]]];
+        inliers.emplace(KdTree::adopt(std::move(tp)));
+    }
     check();
     // 2. Spacing, and the noise: each inlier's offset along its normal from the centroid
     // of itself and its 8 nearest inliers.
@@ -492,17 +502,21 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     const Scalar disk = std::sqrt(Scalar(3.14159265358979323846) / ring);
     // The noise and the median spacing from every stride-th inlier, at most 2^18 of them
     // (a median's error is then below 0.3 %; all of them up to 262,144 inliers).
-    const std::size_t stride = (ip.size() + 262143) / 262144;
-    const std::size_t n_est = (ip.size() + stride - 1) / stride;
+    const std::size_t stride = (sel.size() + 262143) / 262144;
+    const std::size_t n_est = (sel.size() + stride - 1) / stride;
     std::vector<Scalar> s_est(n_est), off(n_est);
-    parallel_for(0, n_est, [&](std::size_t j) {
+    const std::vector<Index> along_est =
+        morton_order(n_est, box, [&](std::size_t j) -> const Vec3& { return pts[sel[j * stride]]; });
+    parallel_for(0, n_est, [&](std::size_t m) {
         thread_local std::vector<Neighbor> nb;
+        const std::size_t j = along_est[m];
         const std::size_t i = j * stride;
-        inliers->knn(ip[i], ring + 1, nb);
+        const Vec3& p = pts[sel[i]];
+        inliers->knn(p, ring + 1, nb);
         s_est[j] = std::sqrt(nb.back().squared_distance) * disk;
         Vec3 c = Vec3::Zero();
         for (const auto& q : nb) c += inliers->point(q.index);
-        off[j] = std::abs(outward_normals[sel[i]].normalized().dot(ip[i] - c / static_cast<Scalar>(nb.size())));
+        off[j] = std::abs(outward_normals[sel[i]].normalized().dot(p - c / static_cast<Scalar>(nb.size())));
     }, 1024);
     // The fit's samples: the inliers, or the means of groups of them (below). Tolerance
     // 1e-3 x h: the vertices start within a chord's error of the surface; the same
