@@ -45,7 +45,10 @@ KINTSUGI_STAGE PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vec
             pts.swap(p2);
             nrm.swap(n2);
         }
-        const KdTree tree(pts);
+        // Buckets of 64 points rather than 12: the cover's candidates come in random order,
+        // so its searches start from cold caches and a shallower tree misses less (2M bench
+        // input, back to back: cover 6.6-7.3 s against 6.7-8.0 s, tree 20 MB smaller).
+        const KdTree tree(pts, KdTreeParams{.leaf_size = 64});
         res.octree_cells = data->octree_cells = data->octree.size();
         res.max_level_cells = data->octree.cells_per_level().back();
 
