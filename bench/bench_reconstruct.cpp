@@ -104,6 +104,14 @@
 // 5.50 / 1111, graph_cut 1.55, marching_tetrahedra 0.83, refine 1.43); 10M 85.57 s / 140.05 s,
 // 5071 MB (pu_octree 9.00 / 4321, pu_cover 36.79 / 5071, triangulation 20.63 / 3985, graph_cut
 // 6.97, marching_tetrahedra 3.26, refine 6.22); mean 0.0079 %, Hausdorff 0.667 % (unchanged).
+// 2026-12-04 23:05 UTC (stop 39; docs/methods/pu_graphcut.md, "2M points: memory under 1 GB"):
+// octree cells as arrays, 72-byte CGAL cells, 32-bit tets, the flow network in one pass, step 8's
+// estimates on a Morton-ordered tree; output unchanged. Huge-page malloc: 100K 1.62 s / 2.59 s,
+// 119 MB; 2M 16.70 s / 28.24 s, 884 MB (pu_octree 1.17 / 569, pu_cover 6.73 / 788, pu_index 0.16,
+// triangulation 4.55 / 846, graph_cut 1.20 / 884, marching_tetrahedra 0.86, refine 1.36); 10M
+// 70.37 s / 118.17 s, 3583 MB (pu_octree 6.21, pu_cover 30.32 / 3583, triangulation 18.04 / 3485,
+// graph_cut 5.01, marching_tetrahedra 2.79, refine 5.37). Default allocator: 2M 18.95 s / 30.83 s,
+// 882 MB.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
