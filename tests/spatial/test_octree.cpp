@@ -194,6 +194,7 @@ TEST_CASE("Octree: point location, centres, corners and box queries") {
         const ks::Index c = t.locate(p);
         REQUIRE(c != ks::Octree::npos);
         CHECK(int(t.cell(c).level) == 5);
+        CHECK(t.cell_level(c) == 5);
     }
     CHECK(t.locate(ks::Vec3::Constant(std::numeric_limits<double>::quiet_NaN())) == ks::Octree::npos);
     // upper corner of the cube belongs to the last cell

@@ -117,6 +117,8 @@ public:
     [[nodiscard]] OctreeCell cell(Index c) const {
         return OctreeCell{codes_[c], begins_[c], begins_[c + 1], levels_[c]};
     }
+    /// Level of cell c (0 = the whole cube, max_level() = finest).
+    [[nodiscard]] std::uint32_t cell_level(Index c) const { return levels_[c]; }
     [[nodiscard]] int max_level() const { return max_level_; }
     /// Minimum corner of the bounding cube (input units).
     [[nodiscard]] const Vec3& cube_min() const { return cube_min_; }

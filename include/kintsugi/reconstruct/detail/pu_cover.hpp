@@ -108,7 +108,7 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     const Octree& oct = *in.octree;
     PUSupportData out;
     out.c = oct.cell_center(cell);
-    out.level = oct.cell(cell).level;
+    out.level = oct.cell_level(cell);
     const Scalar r_min = Scalar(0.75) * oct.cell_diagonal(cell);
     // A ball of this radius around any point of the cube holds the whole cube.
     const Scalar r_cap = std::max(r_min, Scalar(2) * std::sqrt(Scalar(3)) * oct.cube_side());

@@ -110,9 +110,9 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
     // The tets in 32 bits (PUTetMesh), the edges gathered with 32-bit ends: 2M bench input
     // (3M tets, 4.3M edges), 48 MB less while the cells are alive and 170 MB less while
     // the edges are gathered. (The graph cut takes at most 2^32 - 1 nodes.)
-    if (alive.size() >= std::numeric_limits<std::uint32_t>::max())
+    if (alive.size() >= std::numeric_limits<std::uint32_t>::max() - 2)  // + source and sink
         throw invalid_input("kintsugi::reconstruct_pu_graphcut: " + std::to_string(alive.size()) +
-                            " supports to triangulate; at most 4,294,967,294 are supported (raise epsilon or "
+                            " supports to triangulate; at most 4,294,967,292 are supported (raise epsilon or "
                             "lower max_level)");
     auto& narrow = out.tets;
     reserve_huge(narrow, rt.number_of_finite_cells());
