@@ -488,11 +488,10 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     // bench input, random order: 262K queries 1.21 s, the tree 0.55 s). The estimates
     // are those of a tree in the input's order, except where two inliers lie at the same
     // distance from a sample (duplicates): a tie is then broken by the Morton rank.
-    const MortonBox box(pts);
+    std::vector<Index> mo =
+        morton_order(sel.size(), MortonBox(pts), [&](std::size_t j) -> const Vec3& { return pts[sel[j]]; });
     std::optional<KdTree> inliers;
     {
-        const std::vector<Index> mo =
-            morton_order(sel.size(), box, [&](std::size_t j) -> const Vec3& { return pts[sel[j]]; });
         std::vector<Vec3> tp(sel.size());
         for (std::size_t t = 0; t < tp.size(); ++t) tp[t] = pts[sel[mo[t]]];
         inliers.emplace(KdTree::adopt(std::move(tp)));
@@ -507,8 +506,12 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     const std::size_t stride = (sel.size() + 262143) / 262144;
     const std::size_t n_est = (sel.size() + stride - 1) / stride;
     std::vector<Scalar> s_est(n_est), off(n_est);
-    const std::vector<Index> along_est =
-        morton_order(n_est, box, [&](std::size_t j) -> const Vec3& { return pts[sel[j * stride]]; });
+    // The sampled inliers (every stride-th) in the inliers' Morton order.
+    std::vector<Index> along_est;
+    along_est.reserve(n_est);
+    for (const Index i : mo)
+        if (i % stride == 0) along_est.push_back(i / stride);
+    std::vector<Index>().swap(mo);
     parallel_for(0, n_est, [&](std::size_t m) {
         thread_local std::vector<Neighbor> nb;
         const std::size_t j = along_est[m];

@@ -114,13 +114,12 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
         throw invalid_input("kintsugi::reconstruct_pu_graphcut: " + std::to_string(alive.size()) +
                             " supports to triangulate; at most 4,294,967,292 are supported (raise epsilon or "
                             "lower max_level)");
-    auto& narrow = out.tets;
-    reserve_huge(narrow, rt.number_of_finite_cells());
+    reserve_huge(out.tets, rt.number_of_finite_cells());
     for (auto c : rt.finite_cell_handles())
-        narrow.push_back({static_cast<std::uint32_t>(vertex_of[c->vertex(0)->info()]),
-                          static_cast<std::uint32_t>(vertex_of[c->vertex(1)->info()]),
-                          static_cast<std::uint32_t>(vertex_of[c->vertex(2)->info()]),
-                          static_cast<std::uint32_t>(vertex_of[c->vertex(3)->info()])});
+        out.tets.push_back({static_cast<std::uint32_t>(vertex_of[c->vertex(0)->info()]),
+                            static_cast<std::uint32_t>(vertex_of[c->vertex(1)->info()]),
+                            static_cast<std::uint32_t>(vertex_of[c->vertex(2)->info()]),
+                            static_cast<std::uint32_t>(vertex_of[c->vertex(3)->info()])});
     rt.clear();
     std::vector<Index>().swap(vertex_of);
     // Edges from the tets' vertex pairs, gathered per smaller vertex (a counting sort),
@@ -131,13 +130,13 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
         constexpr std::array<std::array<int, 2>, 6> pair{{{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
         const std::size_t nv = alive.size();
         std::vector<std::size_t> start(nv + 1, 0);
-        for (const auto& t : narrow)
+        for (const auto& t : out.tets)
             for (const auto& e : pair) ++start[std::min(t[std::size_t(e[0])], t[std::size_t(e[1])]) + 1];
         std::partial_sum(start.begin(), start.end(), start.begin());
         std::vector<std::uint32_t> other = huge_vector<std::uint32_t>(start[nv]);
         {
             std::vector<std::size_t> at(start.begin(), start.end() - 1);
-            for (const auto& t : narrow)
+            for (const auto& t : out.tets)
                 for (const auto& e : pair) {
                     const std::uint32_t a = t[std::size_t(e[0])], b = t[std::size_t(e[1])];
                     other[at[std::min(a, b)]++] = std::max(a, b);
@@ -156,15 +155,15 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
     }
     progress.update(p0 + (p1 - p0) * 0.95);
     // Tets sorted too: the output mesh then depends only on the triangulation itself.
-    parallel_for(0, narrow.size(), [&](std::size_t i) {
-        auto& t = narrow[i];
+    parallel_for(0, out.tets.size(), [&](std::size_t i) {
+        auto& t = out.tets[i];
         // rotate to the smallest index first keeping orientation (even permutations)
         const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
         const auto p = even_permutation(m);
         t = {t[static_cast<std::size_t>(p[0])], t[static_cast<std::size_t>(p[1])], t[static_cast<std::size_t>(p[2])],
              t[static_cast<std::size_t>(p[3])]};
     }, 8192);
-    sort_maybe_parallel(narrow);  // tets are distinct: the same order whatever the threads
+    sort_maybe_parallel(out.tets);  // tets are distinct: the same order whatever the threads
     progress.update(p1);
     return out;
 }
