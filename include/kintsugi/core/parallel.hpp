@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <functional>
 #include <vector>
 
 #if defined(KINTSUGI_HAS_TBB) && !defined(KINTSUGI_NO_TBB)
@@ -62,17 +63,17 @@ private:
 };
 
 namespace detail {
-/// Sorts v (in parallel when TBB is on and v is large). Only for element types whose
-/// order is total and unique (e.g. (key, index) pairs), so that the result is one.
-template <class T>
-void sort_maybe_parallel(std::vector<T>& v) {
+/// Sorts v by `less` (in parallel when TBB is on and v is large). Only for orders that
+/// are total and unique (e.g. (key, index) pairs), so that the result is one.
+template <class T, class Less = std::less<>>
+void sort_maybe_parallel(std::vector<T>& v, Less less = {}) {
 #ifdef KINTSUGI_PARALLEL_TBB
     if (v.size() > 100000) {
-        tbb::parallel_sort(v.begin(), v.end());
+        tbb::parallel_sort(v.begin(), v.end(), less);
         return;
     }
 #endif
-    std::sort(v.begin(), v.end());
+    std::sort(v.begin(), v.end(), less);
 }
 }  // namespace detail
 
