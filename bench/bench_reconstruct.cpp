@@ -112,6 +112,13 @@
 // 70.37 s / 118.17 s, 3583 MB (pu_octree 6.21, pu_cover 30.32 / 3583, triangulation 18.04 / 3485,
 // graph_cut 5.01, marching_tetrahedra 2.79, refine 5.37). Default allocator: 2M 18.95 s / 30.83 s,
 // 882 MB.
+// 2026-12-05 01:30-01:45 UTC (stop 40; docs/methods/pu_graphcut.md, "2M points in under 15 s"): the
+// cover accepts a batch while it computes the next, bit-map balance, the one-core stages lighter;
+// output unchanged. Huge-page malloc: 100K 1.40 s / 2.35 s, 119 MB; 2M 14.08-14.80 s / 25.4-26.4 s,
+// 820-854 MB (pu_octree 1.09-1.26 / 673, pu_cover 5.95-6.12 / 745, triangulation 4.11-4.47 / 854,
+// graph_cut 0.79-0.84 / 811, marching_tetrahedra 0.48-0.50, refine 1.13-1.26); 10M 69.26 s /
+// 114.87 s, 3508 MB (pu_octree 6.24, pu_cover 27.98 / 3313, triangulation 19.00 / 3481, graph_cut
+// 4.05, marching_tetrahedra 2.07, refine 6.94). Default allocator: 2M 17.38 s / 29.89 s, 802 MB.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
