@@ -100,8 +100,9 @@ void parallel_for(std::size_t begin, std::size_t end, Body&& body, std::size_t g
 /// allowed; `a` then `b` otherwise. For a sequential step beside independent work: `b`
 /// runs on the calling thread (give it the step that reports progress), `a` on a free
 /// worker, and parallel loops inside `a` use whatever threads are free. The two must be
-/// independent (neither reads what the other writes), so the results do not depend on
-/// the threads. An exception from either is rethrown here.
+/// independent (neither reads what the other writes), or share only state accessed
+/// atomically whose interleaving cannot change the result (pu_cover's uncovered set), so
+/// the results do not depend on the threads. An exception from either is rethrown here.
 template <class A, class B>
 void parallel_invoke(A&& a, B&& b) {
 #ifdef KINTSUGI_PARALLEL_TBB

@@ -285,7 +285,8 @@ public:
     /// Nodes with none are pruned before `classify`, and the cells of a node classified
     /// 2 are enumerated through `next`, so the cost follows the wanted cells rather than
     /// all cells (e.g. with a hierarchical bit set of the cells still of interest).
-    /// Every cell for which `visit` is called satisfies next(c, c + 1) == c.
+    /// Nodes for which `next` offers no cell are pruned; `visit` may still see cells that
+    /// `next` would not offer (single-cell nodes and leaf children are visited without it).
     template <class Classify, class Visit, class Next>
     void visit_cells_sparse(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit, Next&& next) const {
         if (codes_.empty()) return;
@@ -450,10 +451,11 @@ private:
                 const std::int64_t np = std::int64_t{1} << (m - 1);
                 // The nodes to add, merged into J: on a bit map of level m-1's grid when it
                 // has at most 2^27 nodes (16 MB; a scan of its words gives J in Morton
-                // order), else listed, sorted and merged. (The list held about 27 codes per
-                // parent before its duplicates went: sorting it was 0.3 s of the octree's
-                // 0.8 s at 2M points.)
-                const bool on_bits = 3 * (m - 1) <= 27;
+                // order) and no more words than 8 x the codes a list would hold, else
+                // listed, sorted and merged. (The list held about 27 codes per parent before
+                // its duplicates went: sorting it was 0.3 s of the octree's 0.8 s at 2M points.)
+                const bool on_bits = 3 * (m - 1) <= 27 &&
+                                     (std::size_t{1} << (3 * (m - 1))) / 64 <= 8 * (J.size() + 27 * I.size());
                 std::vector<std::uint64_t> bits, add;
                 if (on_bits) {
                     bits.assign(((std::size_t{1} << (3 * (m - 1))) + 63) / 64, 0);

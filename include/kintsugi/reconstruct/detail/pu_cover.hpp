@@ -322,7 +322,9 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
     std::size_t remaining = n;
     std::size_t pos = 0;
     // Batch size only changes how much speculative work is wasted, never the result:
-    // it shrinks when many candidates of a batch end up covered by earlier ones.
+    // it shrinks when many candidates of a batch end up covered by earlier ones (and
+    // reacts one batch late, as the next batch is selected before this one is accepted).
+    // stats.evaluated counts the candidates selected, covered ones included.
     std::size_t batch_size = 64;
     // Two batches in flight: while one is accepted (its cells erased from `uncovered`,
     // sequentially), the next one's supports and cells are computed. A candidate of the
@@ -342,6 +344,7 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             if (uncovered.contains(order[pos])) b.cand.push_back(order[pos]);
             ++pos;
         }
+        stats.evaluated += b.cand.size();
     };
     // Speculative and parallel: the support and the cells it would cover are pure
     // functions of the candidate cell.
@@ -374,7 +377,6 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
                 },
                 next_uncovered);
         }, 1);
-        stats.evaluated += b.cand.size();
     };
     auto accept = [&](const Batch& b) {
         std::size_t accepted = 0;
@@ -402,8 +404,10 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
         if (nxt.cand.empty()) {
             accept(cur);
         } else {
-            // accept(cur) only writes `uncovered` and the counters; compute(nxt) only reads
-            // `uncovered` (see above) and writes nxt.
+            // compute(nxt) writes only nxt, and reads `uncovered` while accept(cur) erases
+            // from it (relaxed atomics, PUCellSet): a search misses no cell that stays
+            // uncovered, and accept(nxt) filters out what cur covers. accept(cur) alone
+            // writes `supports`, `remaining`, `batch_size` and stats.fallback.
             parallel_invoke([&] { compute(nxt); }, [&] { accept(cur); });
         }
         progress(1.0 - static_cast<double>(remaining) / static_cast<double>(n));

@@ -156,15 +156,14 @@ inline std::size_t remove_small_regions(const PUTetMesh& tm, const std::vector<s
     // The regions: union-find over the edges whose ends carry the same label (an
     // adjacency list and a flood fill built 69 MB of lists at 2M points). A region's id
     // follows its smallest vertex, as a flood fill from each vertex in turn numbers them.
-    // (32-bit: the pipeline refuses more than 2^32 - 3 supports.)
+    // (32-bit: the pipeline refuses 2^32 - 3 supports or more.)
     DisjointSets<std::uint32_t> sets(nv);
     for (std::size_t e = 0; e < tm.edges.size(); ++e) {
         if ((e & 0xFFFF) == 0 && stop.stop_requested()) throw cancelled_exception{};
         const auto [a, b] = tm.edges[e];
         if (inside[a] == inside[b]) sets.unite(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
     }
-    constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
-    std::vector<std::uint32_t> region(nv, none);  // by representative first, then by vertex
+    std::vector<std::uint32_t> region(nv);  // set at each vertex in turn (a root's before its set's others)
     std::vector<std::size_t> size, supported;
     std::vector<std::uint8_t> label, touches_outer;
     for (std::size_t v = 0; v < nv; ++v) {
