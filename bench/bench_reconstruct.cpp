@@ -114,8 +114,8 @@
 // 882 MB.
 // 2026-12-05 01:30-01:45 UTC (stop 40; docs/methods/pu_graphcut.md, "2M points in under 15 s"): the
 // cover accepts a batch while it computes the next, bit-map balance, the one-core stages lighter;
-// output unchanged. Huge-page malloc: 100K 1.40 s / 2.35 s, 119 MB; 2M 14.08-16.57 s / 25.4-29.5 s
-// (six runs, four under 15 s), 813-948 MB (pu_octree 0.86-1.26 / 674, pu_cover 5.95-7.13 / 747,
+// output unchanged. Huge-page malloc: 100K 1.40 s / 2.35 s, 119 MB; 2M 13.52-16.57 s / 24.4-29.5 s
+// (eight runs, six under 15 s), 813-948 MB (pu_octree 0.86-1.26 / 674, pu_cover 5.95-7.13 / 747,
 // triangulation 4.11-5.02 / 948, graph_cut 0.79-1.12 / 811, marching_tetrahedra 0.48-0.53, refine
 // 1.13-1.26); 10M 69.26 s /
 // 114.87 s, 3508 MB (pu_octree 6.24, pu_cover 27.98 / 3313, triangulation 19.00 / 3481, graph_cut
