@@ -39,6 +39,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -245,19 +246,15 @@ inline MarchingTetrahedraResult marching_tetrahedra_impl(const std::vector<Vec3>
     progress.update(0.5);
 
     // Caps on the boundary of the tet mesh.
-    // (Compared field by field: std::array's == and != call memcmp, which made this sort
-    // 40 % of the stage.)
+    // (Compared as tuples of their fields: std::array's == and != call memcmp, which made
+    // this sort 40 % of the stage.)
+    auto fields = [](const FaceRec& r) { return std::tie(r.key[0], r.key[1], r.key[2]); };
     sort_maybe_parallel(faces, [](const FaceRec& x, const FaceRec& y) {
-        if (x.key[0] != y.key[0]) return x.key[0] < y.key[0];
-        if (x.key[1] != y.key[1]) return x.key[1] < y.key[1];
-        if (x.key[2] != y.key[2]) return x.key[2] < y.key[2];
-        return x.tet_local < y.tet_local;
+        return std::tie(x.key[0], x.key[1], x.key[2], x.tet_local) < std::tie(y.key[0], y.key[1], y.key[2], y.tet_local);
     });
     for (std::size_t i = 0; i < faces.size();) {
         std::size_t j = i + 1;
-        while (j < faces.size() && faces[j].key[0] == faces[i].key[0] && faces[j].key[1] == faces[i].key[1] &&
-               faces[j].key[2] == faces[i].key[2])
-            ++j;
+        while (j < faces.size() && fields(faces[j]) == fields(faces[i])) ++j;
         if (j - i == 1) {
             const std::size_t tet = faces[i].tet_local / 4;
             const int local = static_cast<int>(faces[i].tet_local % 4);

@@ -454,11 +454,11 @@ private:
                 // order) and no more words than 8 x the codes a list would hold, else
                 // listed, sorted and merged. (The list held about 27 codes per parent before
                 // its duplicates went: sorting it was 0.3 s of the octree's 0.8 s at 2M points.)
-                const bool on_bits = 3 * (m - 1) <= 27 &&
-                                     (std::size_t{1} << (3 * (m - 1))) / 64 <= 8 * (J.size() + 27 * I.size());
+                const std::size_t words = 3 * (m - 1) <= 27 ? ((std::size_t{1} << (3 * (m - 1))) + 63) / 64 : 0;
+                const bool on_bits = words > 0 && words <= 8 * (J.size() + 27 * I.size());
                 std::vector<std::uint64_t> bits, add;
                 if (on_bits) {
-                    bits.assign(((std::size_t{1} << (3 * (m - 1))) + 63) / 64, 0);
+                    bits.assign(words, 0);
                     for (const std::uint64_t c : J) bits[c >> 6] |= std::uint64_t{1} << (c & 63);
                 } else {
                     add.reserve(I.size() * 2);

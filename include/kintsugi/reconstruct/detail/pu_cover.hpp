@@ -203,8 +203,11 @@ inline Scalar pu_box_far_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) 
 /// The seeded random order of the candidates (Fisher-Yates on mt19937_64, whose
 /// output sequence is fixed by the standard, so the order is portable). 32-bit: the
 /// shuffle's swaps miss the cache, and half the bytes took 12M cells from 0.51 to 0.36 s.
-/// @pre n < 2^32 (pu_cover checks it)
+/// @throws invalid_input when n >= 2^32 (an octree that large is not supported)
 inline std::vector<std::uint32_t> pu_random_order(std::size_t n, std::uint64_t seed) {
+    if (n > std::numeric_limits<std::uint32_t>::max())
+        throw invalid_input("kintsugi::PUField: the octree has " + std::to_string(n) +
+                            " cells; at most 4,294,967,295 are supported (lower max_level)");
     std::vector<std::uint32_t> order(n);
     for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
     std::mt19937_64 rng(seed);
@@ -306,11 +309,8 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
                                     std::vector<std::uint32_t> order = {}) {
     const Octree& oct = *in.octree;
     const std::size_t n = oct.size();
-    if (n > std::numeric_limits<std::uint32_t>::max())
-        throw invalid_input("kintsugi::PUField: the octree has " + std::to_string(n) +
-                            " cells; at most 4,294,967,295 are supported (lower max_level)");
     stats.candidates = n;
-    if (order.size() != n) order = pu_random_order(n, in.seed);
+    if (order.size() != n) order = pu_random_order(n, in.seed);  // (which refuses n >= 2^32)
     // Uncovered cells: octree nodes whose cells are all covered already are pruned
     // from the covering queries, and the cells of nodes inside a ball are enumerated
     // among the uncovered ones only.

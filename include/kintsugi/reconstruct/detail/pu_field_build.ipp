@@ -38,10 +38,7 @@ KINTSUGI_STAGE PUFieldResult PUField::build_from(std::vector<Vec3> pts, std::vec
         std::vector<std::uint32_t> order;
         KdTree tree;
         parallel_invoke(
-            [&] {
-                if (data->octree.size() <= std::numeric_limits<std::uint32_t>::max())
-                    order = detail::pu_random_order(data->octree.size(), params.seed);
-            },
+            [&] { order = detail::pu_random_order(data->octree.size(), params.seed); },
             [&] {
                 // The fits read the points in Morton order (memory locality); the octree's
                 // point lists keep the caller's indices.
