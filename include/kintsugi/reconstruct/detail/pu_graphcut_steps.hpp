@@ -428,14 +428,32 @@ struct RefineData {
     RefineStats stats;                   ///< noise_ratio and neighbors (projected 0)
 };
 
-/// @brief Steps 1-2 of step 8 (see refine_to_samples). Polls `stop` only, reports no
-/// progress: it runs beside the triangulation, off the calling thread.
+/// Step 8's spacing at a sample: the radius of its refine_ring nearest neighbours (itself
+/// included: refine_ring + 1) x sqrt(π / refine_ring), the mean spacing of refine_ring
+/// points on a disk of that radius.
+inline constexpr std::size_t refine_ring = 8;
+inline Scalar refine_spacing_of(Scalar ring_radius) {
+    return ring_radius * std::sqrt(Scalar(3.14159265358979323846) / static_cast<Scalar>(refine_ring));
+}
+
+/// What refine_data chose for the fit: its samples (the inliers, or the means of groups
+/// of them), before refine_fit builds their MLS surface.
+struct RefineSamples {
+    std::vector<Vec3> points, normals;  ///< empty: too few inliers
+    std::size_t k = 0;                  ///< neighbours of each fit
+    std::vector<Scalar> spacing;        ///< s of each sample when the estimates read all of them, else empty
+    RefineStats stats;                  ///< noise_ratio and neighbors (projected 0)
+};
+
+/// @brief Steps 1-2 of step 8 (see refine_to_samples), up to the fit's samples. Polls
+/// `stop` only, reports no progress: it runs beside the triangulation, off the calling
+/// thread.
 /// @param outward_normals the input normals, pointing outward
-/// @return mls empty when fewer than max(2 k, 16) points are inliers
-inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts,
-                              const std::vector<Vec3>& outward_normals, std::size_t k, Scalar band,
-                              const std::stop_token& stop) {
-    RefineData data;
+/// @return points empty when fewer than max(2 k, 16) points are inliers
+inline RefineSamples refine_data(const PUField& field, const std::vector<Vec3>& pts,
+                                 const std::vector<Vec3>& outward_normals, std::size_t k, Scalar band,
+                                 const std::stop_token& stop) {
+    RefineSamples data;
     RefineStats& stats = data.stats;
     auto check = [&] {
         if (stop.stop_requested()) throw cancelled_exception{};
@@ -452,7 +470,6 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
         const Scalar gn = g.norm();
         near[i] = std::isfinite(v) && gn > 0 && std::abs(v) <= band * gn && g.dot(outward_normals[i]) > 0;
     }, 1024);
-    std::vector<Index>().swap(along);
     // The inliers by index, and their positions in a kd-tree that holds them (no other
     // copy of them: this runs beside the triangulation, whose memory is the stage's
     // largest; the grouping below reads the input through the indices).
@@ -460,7 +477,6 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     sel.reserve(static_cast<std::size_t>(std::count(near.begin(), near.end(), std::uint8_t{1})));
     for (std::size_t i = 0; i < pts.size(); ++i)
         if (near[i]) sel.push_back(static_cast<Index>(i));
-    std::vector<std::uint8_t>().swap(near);
     if (sel.size() < std::max<std::size_t>(2 * k, 16)) return data;
     auto selected = [&](const std::vector<Vec3>& all) {
         std::vector<Vec3> out(sel.size());
@@ -472,8 +488,19 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     // bench input, random order: 262K queries 1.21 s, the tree 0.55 s). The estimates
     // are those of a tree in the input's order, except where two inliers lie at the same
     // distance from a sample (duplicates): a tie is then broken by the Morton rank.
-    std::vector<Index> mo =
-        morton_order(sel.size(), MortonBox(pts), [&](std::size_t j) -> const Vec3& { return pts[sel[j]]; });
+    // mo[t]: the t-th inlier (index into sel) along the input's Morton order, ties by
+    // index, which is the inliers' own Morton order in the same box (a second sort of
+    // 2M codes took 0.15 s).
+    std::vector<Index> mo;
+    {
+        std::vector<Index> pos(pts.size());  // the position in sel of each inlier
+        for (std::size_t j = 0; j < sel.size(); ++j) pos[sel[j]] = static_cast<Index>(j);
+        mo.reserve(sel.size());
+        for (const Index i : along)
+            if (near[i]) mo.push_back(pos[i]);
+    }
+    std::vector<Index>().swap(along);
+    std::vector<std::uint8_t>().swap(near);
     std::optional<KdTree> inliers;
     {
         std::vector<Vec3> tp(sel.size());
@@ -483,8 +510,6 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     check();
     // 2. Spacing, and the noise: each inlier's offset along its normal from the centroid
     // of itself and its 8 nearest inliers.
-    constexpr std::size_t ring = 8;
-    const Scalar disk = std::sqrt(Scalar(3.14159265358979323846) / ring);
     // The noise and the median spacing from every stride-th inlier, at most 2^18 of them
     // (a median's error is then below 0.3 %; all of them up to 262,144 inliers).
     const std::size_t stride = (sel.size() + 262143) / 262144;
@@ -501,16 +526,13 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
         const std::size_t j = along_est[m];
         const std::size_t i = j * stride;
         const Vec3& p = pts[sel[i]];
-        inliers->knn(p, ring + 1, nb);
-        s_est[j] = std::sqrt(nb.back().squared_distance) * disk;
+        inliers->knn(p, refine_ring + 1, nb);
+        s_est[j] = refine_spacing_of(std::sqrt(nb.back().squared_distance));
         Vec3 c = Vec3::Zero();
         for (const auto& q : nb) c += inliers->point(q.index);
         off[j] = std::abs(outward_normals[sel[i]].normalized().dot(p - c / static_cast<Scalar>(nb.size())));
     }, 1024);
-    // The fit's samples: the inliers, or the means of groups of them (below). Tolerance
-    // 1e-3 x h: the vertices start within a chord's error of the surface; the same
-    // distances as 1e-4 to 1e-4 % of the diagonal at 80 % of the time (bunny00).
-    std::optional<PointSetSurface>& mls = data.mls;
+    // The fit's samples: the inliers, or the means of groups of them (below).
     std::size_t fit_k = k;
     stats.neighbors = k;
     bool grouped = false;
@@ -546,10 +568,11 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
                 const auto min_count = static_cast<std::size_t>(
                     std::max<Scalar>(1, std::round(Scalar(0.5) * static_cast<Scalar>(k2) / static_cast<Scalar>(k))));
                 inliers.reset();
-                const auto [ap, an] = column_means(pts, outward_normals, h, min_count, &sel);
+                auto [ap, an] = column_means(pts, outward_normals, h, min_count, &sel);
                 if (ap.size() >= std::max<std::size_t>(2 * k, 16)) {
                     grouped = true;
-                    mls.emplace(with_normals(ap, an), PointSetSurfaceParams{.k = k, .tolerance = 1e-3});
+                    data.points = std::move(ap);
+                    data.normals = std::move(an);
                 } else {
                     // Too few groups to fit (a small, noisy part): k2 raw samples per fit.
                     fit_k = k2;
@@ -559,21 +582,41 @@ inline RefineData refine_data(const PUField& field, const std::vector<Vec3>& pts
     }
     if (!grouped) {
         inliers.reset();
-        std::vector<Vec3> fp = selected(pts), fn = selected(outward_normals);
-        mls.emplace(with_normals(fp, fn), PointSetSurfaceParams{.k = fit_k, .tolerance = 1e-3});
+        data.points = selected(pts);
+        data.normals = selected(outward_normals);
+        // The spacing of every sample: the estimate's own when it read all of them.
+        if (stride == 1) data.spacing = std::move(s_est);
     }
-    check();
-    // The spacing of every fit sample: the estimate's own when it read all of them.
+    data.k = fit_k;
+    return data;
+}
+
+/// @brief The end of step 8's data side: the MLS surface of the samples refine_data chose,
+/// and their spacing (the radius of their 8 nearest neighbours x sqrt(π/8), as in
+/// refine_data). Polls `stop` only, reports no progress: it runs beside the graph cut
+/// (Boykov-Kolmogorov is sequential), off the calling thread.
+/// @return mls empty when `samples` holds no point
+inline RefineData refine_fit(RefineSamples samples, const std::stop_token& stop) {
+    RefineData data;
+    data.stats = samples.stats;
+    if (samples.points.empty()) return data;
+    // Tolerance 1e-3 x h: the vertices start within a chord's error of the surface; the
+    // same distances as 1e-4 to 1e-4 % of the diagonal at 80 % of the time (bunny00).
+    data.mls.emplace(with_normals(samples.points, samples.normals),
+                     PointSetSurfaceParams{.k = samples.k, .tolerance = 1e-3});
+    std::vector<Vec3>().swap(samples.points);
+    std::vector<Vec3>().swap(samples.normals);
+    if (stop.stop_requested()) throw cancelled_exception{};
     std::vector<Scalar>& sq = data.spacing;
-    if (!grouped && stride == 1) {
-        sq = std::move(s_est);
+    if (!samples.spacing.empty()) {
+        sq = std::move(samples.spacing);
     } else {
-        const KdTree& tree = mls->tree();
+        const KdTree& tree = data.mls->tree();
         sq.resize(tree.size());
         parallel_for(0, tree.size(), [&](std::size_t i) {
             thread_local std::vector<Neighbor> nb;
-            tree.knn(tree.point(i), ring + 1, nb);
-            sq[i] = std::sqrt(nb.back().squared_distance) * disk;
+            tree.knn(tree.point(i), refine_ring + 1, nb);
+            sq[i] = refine_spacing_of(std::sqrt(nb.back().squared_distance));
         }, 1024);
     }
     return data;
