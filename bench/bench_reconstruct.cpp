@@ -120,6 +120,10 @@
 // 1.13-1.26); 10M 69.26 s /
 // 114.87 s, 3508 MB (pu_octree 6.24, pu_cover 27.98 / 3313, triangulation 19.00 / 3481, graph_cut
 // 4.05, marching_tetrahedra 2.07, refine 6.94). Default allocator: 2M 17.38 s / 29.89 s, 802 MB.
+// 2026-12-05 05:20 UTC (stop 41; docs/methods/pu_graphcut.md, "the triangulation stage's two
+// sides"): step 8's MLS surface built beside the graph cut; output unchanged. Huge-page malloc,
+// back to back with stop 40's build: 2M 13.7, 13.7, 13.8 s against 14.0, 14.2, 14.5 s, 815-818 MB
+// (triangulation 3.97-4.11 against 4.29-4.36); 100K 1.55 s against 1.58 s, 119 MB.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
