@@ -102,7 +102,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             for (std::size_t i = 0; i < ns; ++i) trusted.push_back(i);
 
         // CGAL's insertion is sequential: what needs only the sites and the data is made
-        // on the other threads meanwhile: step 8's inliers and their surface first (their
+        // on the other threads meanwhile: step 8's inliers and the fit's samples first (their
         // memory is freed before the triangulation's peak, when its tets are listed), then
         // the terminal values at every site, both in Morton order (2M bench input: this
         // stage and step 8 took 6.3 + 4.4 s, now 5.7 + 1.5 s; the stage's peak 978 -> 937
@@ -214,8 +214,9 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             }
         };
         // Step 8's MLS surface and spacing on the other threads meanwhile: the graph cut
-        // runs on one (2M bench input: 0.4 s of the triangulation stage's work moved into
-        // the graph cut's idle core; output identical).
+        // runs on one (2M bench input: 0.36-0.43 s beside its 0.8-1.1 s, and the
+        // triangulation stage, whose two sides both keep a core busy, 4.3 -> 4.0-4.1 s;
+        // output identical).
         parallel_invoke(
             [&] {
                 if (refining) fit_data = refine_fit(std::move(fit_samples), control.stop);
