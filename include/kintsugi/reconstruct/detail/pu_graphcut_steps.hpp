@@ -418,8 +418,9 @@ inline std::pair<std::vector<Vec3>, std::vector<Vec3>> column_means(const std::v
 /// 5. The other new vertices (hole fills) take bi-Laplacian positions (bilaplacian_fill)
 ///    between the projected ones and the coarse ones left where step 7 put them.
 /// 6. A triangle made degenerate has its corners put back (see the end).
-/// Steps 1-2 need no mesh (refine_data, made while the triangulation runs); steps 3-6
-/// are refine_to_samples.
+/// Steps 1-2 need no mesh: refine_data chooses the fit's samples while the triangulation
+/// runs, refine_fit builds their MLS surface and spacing while the graph cut runs; steps
+/// 3-6 are refine_to_samples.
 ///
 /// The data side of step 8: the inliers' MLS surface, their spacing and the noise.
 struct RefineData {
@@ -592,9 +593,8 @@ inline RefineSamples refine_data(const PUField& field, const std::vector<Vec3>& 
 }
 
 /// @brief The end of step 8's data side: the MLS surface of the samples refine_data chose,
-/// and their spacing (the radius of their 8 nearest neighbours x sqrt(π/8), as in
-/// refine_data). Polls `stop` only, reports no progress: it runs beside the graph cut
-/// (Boykov-Kolmogorov is sequential), off the calling thread.
+/// and their spacing (refine_spacing_of). Polls `stop` only, reports no progress: it runs
+/// beside the graph cut (Boykov-Kolmogorov is sequential), off the calling thread.
 /// @return mls empty when `samples` holds no point
 inline RefineData refine_fit(RefineSamples samples, const std::stop_token& stop) {
     RefineData data;
