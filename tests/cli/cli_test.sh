@@ -281,12 +281,18 @@ interrupt() {
   "$@" >"$work/out" 2>"$work/err" &
   local pid=$! t0=$SECONDS
   case $when in
-    tmp:*) for _ in $(seq 400); do
-             [ -n "$(find "$work" -maxdepth 1 -name ".${when#tmp:}.*.tmp")" ] && break; sleep 0.05
-           done ;;
+    # A shell glob, not find: polled every 10 ms without a fork, so that even a short
+    # write is seen. If the command ends first, the test says so (it cannot interrupt).
+    tmp:*) local seen=0
+           for _ in $(seq 3000); do
+             compgen -G "$work/.${when#tmp:}.*.tmp" >/dev/null && { seen=1; break; }
+             kill -0 $pid 2>/dev/null || break
+             sleep 0.01
+           done
+           [ $seen -eq 1 ] || bad "$what: the write's temporary file was never seen (the command ended or never wrote)" ;;
     *) sleep "$when" ;;
   esac
-  kill -s "$sig" $pid
+  kill -s "$sig" $pid 2>/dev/null
   wait $pid; local rc=$?
   if [ $rc -eq "$code" ]; then ok; else bad "$what: exit $rc, expected $code; stderr: $(head -c 300 "$work/err")"; fi
   if [ $((SECONDS - t0)) -le 15 ]; then ok; else bad "$what: took $((SECONDS - t0)) s to stop"; fi
@@ -301,11 +307,13 @@ no_leftovers term_rec.ply
 # perturb: 630K points -> 4.4M (a 210 MB PLY, ~2.5 s): the signal lands in its loops, or in the write.
 interrupt INT 0.4 130 "Ctrl-C during perturb" -- "$bin" perturb "$work/big.ply" "$work/int_pert.ply" --outliers 6 --noise 0.01
 no_leftovers int_pert.ply
+# The writes: a binary PLY (212 MB, about 0.3 s here) and an XYZ file, whose text takes
+# about 1.3 s to format, so that the signal surely lands inside the write.
 interrupt TERM tmp:term_pert.ply 143 "SIGTERM during perturb's write" -- "$bin" perturb "$work/big.ply" "$work/term_pert.ply" --outliers 6 --noise 0.01
 stderr_has "SIGTERM message" "interrupted by SIGTERM"
 no_leftovers term_pert.ply
-interrupt INT tmp:int_write.ply 130 "Ctrl-C during perturb's write" -- "$bin" perturb "$work/big.ply" "$work/int_write.ply" --outliers 6
-no_leftovers int_write.ply
+interrupt INT tmp:int_write.xyz 130 "Ctrl-C during perturb's write" -- "$bin" perturb "$work/big.ply" "$work/int_write.xyz" --outliers 6
+no_leftovers int_write.xyz
 rm -f "$work/big1.ply" "$work/big.ply"
 
 echo "cli: $pass passed, $fail failed"
