@@ -137,6 +137,59 @@ TEST_CASE("KdTree knn resolves equidistant ties by index, also beyond the k-th p
         }
 }
 
+TEST_CASE("KdTree knn_within: the k nearest cut at an inclusive radius, ties by index, any bound") {
+    // brute force: the k nearest, then those at most r2 away
+    auto want = [](const std::vector<ks::Vec3>& pts, const ks::Vec3& q, std::size_t k, double r2) {
+        auto all = brute_knn(pts, q, k);
+        while (!all.empty() && all.back().squared_distance > r2) all.pop_back();
+        return all;
+    };
+    const auto pts = random_points(3000, 11);
+    const ks::KdTree tree(pts);
+    std::vector<ks::Neighbor> got;
+    std::size_t cut = 0, whole = 0;
+    auto queries = random_points(100, 12);
+    for (std::size_t i = 0; i < 20; ++i) queries.push_back(queries[i] * 40.0);  // far from every point
+    for (const auto& q : queries)
+        for (const std::size_t k : {std::size_t{1}, std::size_t{7}, std::size_t{30}}) {
+            const auto exact = brute_knn(pts, q, k);
+            const double dk = exact.back().squared_distance;
+            // Below, at (inclusive), and above the k-th distance; an upper bound from
+            // other points (the k points nearest a shifted query), and none at all.
+            const auto shifted = brute_knn(pts, q + ks::Vec3(0.01, -0.02, 0.015), k);
+            double from_others = 0;
+            for (const auto& n : shifted) from_others = std::max(from_others, sq_dist(q, pts[n.index]));
+            for (const double r2 : {dk * 0.5, dk, dk * 1.5, from_others, std::numeric_limits<double>::max()}) {
+                tree.knn_within(q, k, r2, got);
+                const auto w = want(pts, q, k, r2);
+                check_same(got, w);
+                (w.size() < k ? cut : whole) += 1;
+            }
+        }
+    CHECK(cut >= 100);    // the radius cut the list
+    CHECK(whole >= 300);  // and it did not
+    // Ties: grid cell centres (8 equidistant corners) and grid points, the bound exactly
+    // at the tied distance keeps every tied point that the k allow, by index.
+    const auto grid = grid_points(6);
+    const ks::KdTree gtree(grid);
+    for (const ks::Vec3 q : {ks::Vec3(1.5, 1.5, 1.5), ks::Vec3(2, 2, 2), ks::Vec3(2.5, 3, 3.5)})
+        for (std::size_t k = 1; k <= 20; ++k)
+            for (const double r2 : {0.75, 1.0, 2.0, 2.75}) {
+                gtree.knn_within(q, k, r2, got);
+                check_same(got, want(grid, q, k, r2));
+            }
+    // A negative radius finds nothing; NaN is refused; an empty tree finds nothing.
+    tree.knn_within(queries[0], 5, -1.0, got);
+    CHECK(got.empty());
+    CHECK_THROWS_WITH_AS(tree.knn_within(queries[0], 5, std::nan(""), got), doctest::Contains("NaN"),
+                         ks::invalid_input);
+    CHECK_THROWS_WITH_AS(tree.knn_within(ks::Vec3(std::nan(""), 0, 0), 5, 1.0, got), doctest::Contains("NaN"),
+                         ks::invalid_input);
+    const ks::KdTree empty(std::vector<ks::Vec3>{});
+    empty.knn_within(queries[0], 5, 1.0, got);
+    CHECK(got.empty());
+}
+
 TEST_CASE("KdTree radius search is inclusive at the boundary and matches brute force") {
     const auto pts = grid_points(6);
     const ks::KdTree tree(pts);

@@ -132,36 +132,26 @@ public:
     /// The min(k, size()) nearest points to q, by increasing distance (ties by index).
     /// @throws invalid_input if q has a NaN or infinite coordinate.
     void knn(const Vec3& q, std::size_t k, std::vector<Neighbor>& out) const {
-        out.clear();
         require_finite(q, "knn");
-        k = std::min(k, pts().size());
-        if (k == 0) return;
-        // Ask for one more than needed: when the k-th and (k+1)-th distances
-        // differ, the k found are exactly the points within the k-th distance.
-        // When they tie, the tie may extend beyond what nanoflann returned (it
-        // keeps an arbitrary subset of equidistant points), so every point at
-        // most that far is collected and the tie resolved by index.
-        const std::size_t kq = std::min(k + 1, pts().size());
-        thread_local std::vector<std::size_t> idx;
-        thread_local std::vector<Scalar> d2;
-        idx.resize(kq);
-        d2.resize(kq);
-        const std::size_t found = impl_->index->knnSearch(q.data(), kq, idx.data(), d2.data());
-        if (found < kq)  // nanoflann drops points at an infinite squared distance
-            throw invalid_input("kintsugi::KdTree::knn: the query point is so far from the points that their "
-                                "squared distances overflow double precision; query nearer the points");
-        out.resize(found);
-        // nanoflann returns them by increasing distance; only equal distances need
-        // the sort (by index), so it is skipped when there are none.
-        bool sorted = true;
-        for (std::size_t i = 0; i < found; ++i) {
-            out[i] = {idx[i], d2[i]};
-            if (i > 0 && !(d2[i - 1] < d2[i])) sorted = false;
+        knn_bounded(q, k, std::numeric_limits<Scalar>::max(), out);
+    }
+    /// The min(k, size()) nearest points to q among those at squared distance at most
+    /// `squared_radius` (fewer when fewer lie that close), by increasing distance (ties by
+    /// index): the same points as knn() followed by a cut at the radius. A hybrid search
+    /// (Open3D's SearchHybrid, PCL's nearestKSearch with a radius). With a bound close to
+    /// the k-th distance (the farthest of any k points, e.g. a nearby query's neighbours)
+    /// it prunes much more of the tree than knn() when q lies far from the points.
+    /// A negative radius finds nothing.
+    /// @throws invalid_input if q has a NaN or infinite coordinate or the radius is NaN.
+    void knn_within(const Vec3& q, std::size_t k, Scalar squared_radius, std::vector<Neighbor>& out) const {
+        require_finite(q, "knn_within");
+        if (std::isnan(squared_radius))
+            throw invalid_input("kintsugi::KdTree::knn_within: the squared radius is NaN");
+        if (squared_radius < 0) {
+            out.clear();
+            return;
         }
-        if (!sorted) detail::sort_neighbors(out);
-        if (found > k && out[k - 1].squared_distance == out[k].squared_distance)
-            radius_search_squared(q, out[k - 1].squared_distance, out);
-        out.resize(std::min(k, out.size()));
+        knn_bounded(q, k, squared_radius, out);
     }
     /// Convenience overload returning a new vector.
     [[nodiscard]] std::vector<Neighbor> knn(const Vec3& q, std::size_t k) const {
@@ -225,6 +215,49 @@ public:
     }
 
 private:
+    // knn() and knn_within(): nanoflann's k-nearest search with its worst distance started
+    // at the bound (std::numeric_limits<Scalar>::max() for none).
+    void knn_bounded(const Vec3& q, std::size_t k, Scalar squared_radius, std::vector<Neighbor>& out) const {
+        out.clear();
+        k = std::min(k, pts().size());
+        if (k == 0) return;
+        const bool bounded = squared_radius < std::numeric_limits<Scalar>::max();
+        // Ask for one more than needed: when the k-th and (k+1)-th distances
+        // differ, the k found are exactly the points within the k-th distance.
+        // When they tie, the tie may extend beyond what nanoflann returned (it
+        // keeps an arbitrary subset of equidistant points), so every point at
+        // most that far is collected and the tie resolved by index. (With a bound,
+        // fewer than k + 1 found means that no other point lies within it, so
+        // none ties with the k-th either.)
+        const std::size_t kq = std::min(k + 1, pts().size());
+        thread_local std::vector<std::size_t> idx;
+        thread_local std::vector<Scalar> d2;
+        idx.resize(kq);
+        d2.resize(kq);
+        nanoflann::KNNResultSet<Scalar, std::size_t> rs(kq);
+        rs.init(idx.data(), d2.data());
+        // The set's worst distance is its last slot until it is full; nanoflann's leaf
+        // test is strict (<), so the bound is widened by one ulp to stay inclusive.
+        if (bounded) d2[kq - 1] = std::nextafter(squared_radius, std::numeric_limits<Scalar>::max());
+        impl_->index->findNeighbors(rs, q.data(), nanoflann::SearchParams());
+        const std::size_t found = rs.size();
+        if (!bounded && found < kq)  // nanoflann drops points at an infinite squared distance
+            throw invalid_input("kintsugi::KdTree::knn: the query point is so far from the points that their "
+                                "squared distances overflow double precision; query nearer the points");
+        out.resize(found);
+        // nanoflann returns them by increasing distance; only equal distances need
+        // the sort (by index), so it is skipped when there are none.
+        bool sorted = true;
+        for (std::size_t i = 0; i < found; ++i) {
+            out[i] = {idx[i], d2[i]};
+            if (i > 0 && !(d2[i - 1] < d2[i])) sorted = false;
+        }
+        if (!sorted) detail::sort_neighbors(out);
+        if (found > k && out[k - 1].squared_distance == out[k].squared_distance)
+            radius_search_squared(q, out[k - 1].squared_distance, out);
+        out.resize(std::min(k, out.size()));
+    }
+
     void init(std::vector<Vec3> points, const KdTreeParams& params) {
         if (params.leaf_size == 0)
             throw invalid_input("kintsugi::KdTree: leaf_size is 0; pass at least 1 (12 is the default)");

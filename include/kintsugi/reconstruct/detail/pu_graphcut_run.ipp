@@ -155,8 +155,19 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
                         return;
                     }
                     constexpr std::size_t planes = 7;  // odd: the median is one plane's value
+                    const std::size_t kp = std::min(planes, trusted.size());
+                    // Most untrusted sites lie far from every trusted support, where a plain
+                    // k-nearest search visits much of the tree; the previous query's planes
+                    // (any kp of them bound the kp-th distance; the sites come along the
+                    // Morton curve, so they are near) bound it. The planes found are the same.
                     thread_local std::vector<Neighbor> nbs;
-                    origin_tree.knn(sites[i], std::min(planes, trusted.size()), nbs);
+                    Scalar bound = std::numeric_limits<Scalar>::max();
+                    if (nbs.size() == kp) {
+                        bound = 0;
+                        for (const auto& nb : nbs)
+                            bound = std::max(bound, (origin_tree.point(nb.index) - sites[i]).squaredNorm());
+                    }
+                    origin_tree.knn_within(sites[i], kp, bound, nbs);
                     thread_local std::vector<Scalar> ds;
                     ds.clear();
                     for (const auto& nb : nbs) {
