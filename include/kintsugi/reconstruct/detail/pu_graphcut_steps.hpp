@@ -59,10 +59,26 @@ struct PUTetMesh {
 };
 
 /// Regular triangulation of weighted sites (centre, weight = radius²) with CGAL.
-/// Sites with radius 0 are plain points. Reports progress in [p0, p1]. Defined in
-/// pu_triangulation.ipp (kintsugi/core/stages.hpp).
+/// Sites with radius 0 are plain points. Reports progress in [p0, p1]. The tets come in
+/// CGAL's storage order: canonical_tet_order makes their order depend on the
+/// triangulation alone (the pipeline runs it beside the graph cut, which reads only the
+/// edges). Defined in pu_triangulation.ipp (kintsugi/core/stages.hpp).
 KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, const std::vector<Scalar>& radii,
                                           Progress& progress, double p0, double p1);
+
+/// Each tet rotated to its smallest vertex first (orientation kept: even permutations),
+/// then the tets sorted: the output mesh then depends only on the triangulation itself.
+/// The tets are distinct, so the order is the same whatever the threads.
+inline void canonical_tet_order(std::vector<std::array<std::uint32_t, 4>>& tets) {
+    parallel_for(0, tets.size(), [&](std::size_t i) {
+        auto& t = tets[i];
+        const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
+        const auto p = even_permutation(m);
+        t = {t[static_cast<std::size_t>(p[0])], t[static_cast<std::size_t>(p[1])], t[static_cast<std::size_t>(p[2])],
+             t[static_cast<std::size_t>(p[3])]};
+    }, 8192);
+    sort_maybe_parallel(tets);
+}
 
 /// tm.tets as Tet (the marching tetrahedra's type); tm.tets is freed.
 inline std::vector<Tet> widened_tets(PUTetMesh& tm) {

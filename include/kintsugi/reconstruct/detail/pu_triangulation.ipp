@@ -153,17 +153,6 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
         for (Index v = 0; v < nv; ++v)
             for (std::size_t j = 0; j < kept[v]; ++j) out.edges.push_back({v, Index{other[start[v] + j]}});
     }
-    progress.update(p0 + (p1 - p0) * 0.95);
-    // Tets sorted too: the output mesh then depends only on the triangulation itself.
-    parallel_for(0, out.tets.size(), [&](std::size_t i) {
-        auto& t = out.tets[i];
-        // rotate to the smallest index first keeping orientation (even permutations)
-        const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
-        const auto p = even_permutation(m);
-        t = {t[static_cast<std::size_t>(p[0])], t[static_cast<std::size_t>(p[1])], t[static_cast<std::size_t>(p[2])],
-             t[static_cast<std::size_t>(p[3])]};
-    }, 8192);
-    sort_maybe_parallel(out.tets);  // tets are distinct: the same order whatever the threads
     progress.update(p1);
     return out;
 }
