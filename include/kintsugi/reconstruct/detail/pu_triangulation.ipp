@@ -114,6 +114,11 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
         throw invalid_input("kintsugi::reconstruct_pu_graphcut: " + std::to_string(alive.size()) +
                             " supports to triangulate; at most 4,294,967,292 are supported (raise epsilon or "
                             "lower max_level)");
+    // A vertex's edge ends are counted in 32 bits below (at most 3 per tet).
+    if (rt.number_of_finite_cells() >= std::numeric_limits<std::uint32_t>::max() / 3)
+        throw invalid_input("kintsugi::reconstruct_pu_graphcut: the supports' triangulation has " +
+                            std::to_string(rt.number_of_finite_cells()) +
+                            " tetrahedra; at most 1,431,655,764 are supported (raise epsilon or lower max_level)");
     reserve_huge(out.tets, rt.number_of_finite_cells());
     for (auto c : rt.finite_cell_handles())
         out.tets.push_back({static_cast<std::uint32_t>(vertex_of[c->vertex(0)->info()]),
@@ -129,19 +134,46 @@ KINTSUGI_STAGE PUTetMesh regular_tet_mesh(const std::vector<Vec3>& centers, cons
     {
         constexpr std::array<std::array<int, 2>, 6> pair{{{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
         const std::size_t nv = alive.size();
+        // The counting and the filling in `parts` ranges of tets, each with its own counts
+        // (which become its write offsets within each vertex's slot), so that a thread
+        // that is free takes a range: the other side of the stage (step 8's data, the
+        // site values) often still holds the second core, and then the ranges run one
+        // after the other at no extra cost. The lists are sorted below, so the result
+        // does not depend on the ranges or the threads.
+        constexpr std::size_t parts = 4;
+        const std::size_t nt = out.tets.size();
+        auto part_begin = [&](std::size_t c) { return nt * c / parts; };
+        std::vector<std::vector<std::uint32_t>> count(parts);
+        parallel_for(0, parts, [&](std::size_t c) {
+            count[c].assign(nv, 0);
+            for (std::size_t i = part_begin(c); i < part_begin(c + 1); ++i) {
+                const auto& t = out.tets[i];
+                for (const auto& e : pair) ++count[c][std::min(t[std::size_t(e[0])], t[std::size_t(e[1])])];
+            }
+        }, 1);
         std::vector<std::size_t> start(nv + 1, 0);
-        for (const auto& t : out.tets)
-            for (const auto& e : pair) ++start[std::min(t[std::size_t(e[0])], t[std::size_t(e[1])]) + 1];
-        std::partial_sum(start.begin(), start.end(), start.begin());
+        for (std::size_t v = 0; v < nv; ++v) {
+            std::uint32_t off = 0;  // at most 3 nt < 2^32 (checked above)
+            for (std::size_t c = 0; c < parts; ++c) {
+                const std::uint32_t k = count[c][v];
+                count[c][v] = off;
+                off += k;
+            }
+            start[v + 1] = start[v] + off;
+        }
         std::vector<std::uint32_t> other = huge_vector<std::uint32_t>(start[nv]);
-        {
-            std::vector<std::size_t> at(start.begin(), start.end() - 1);
-            for (const auto& t : out.tets)
+        parallel_for(0, parts, [&](std::size_t c) {
+            auto& at = count[c];
+            for (std::size_t i = part_begin(c); i < part_begin(c + 1); ++i) {
+                const auto& t = out.tets[i];
                 for (const auto& e : pair) {
                     const std::uint32_t a = t[std::size_t(e[0])], b = t[std::size_t(e[1])];
-                    other[at[std::min(a, b)]++] = std::max(a, b);
+                    const std::uint32_t m = std::min(a, b);
+                    other[start[m] + at[m]++] = std::max(a, b);
                 }
-        }
+            }
+        }, 1);
+        std::vector<std::vector<std::uint32_t>>().swap(count);
         std::vector<std::size_t> kept(nv);
         parallel_for(0, nv, [&](std::size_t v) {
             const auto b = other.begin() + static_cast<std::ptrdiff_t>(start[v]);
