@@ -124,6 +124,11 @@
 // sides"): step 8's MLS surface built beside the graph cut; output unchanged. Huge-page malloc,
 // back to back with stop 40's build: 2M 13.7, 13.7, 13.8 s against 14.0, 14.2, 14.5 s, 815-818 MB
 // (triangulation 3.97-4.11 against 4.29-4.36); 100K 1.55 s against 1.58 s, 119 MB.
+// 2026-12-05 07:00 UTC (stop 42; docs/methods/pu_graphcut.md, "the triangulation stage's critical
+// path"): bounded plane searches, the tets' order beside the graph cut; output unchanged. A slower
+// phase of the VM; back to back with stop 41's build: 2M 14.4, 14.8, 15.0, 14.0 s (26.0 s CPU)
+// against 14.5, 15.2, 15.1, 14.9 s (26.9 s CPU), 804-831 MB (triangulation 3.87-4.11 against
+// 4.27-4.42); 100K 1.29 s against 1.33 s.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
