@@ -128,7 +128,9 @@
 // path"): bounded plane searches, the tets' order beside the graph cut; output unchanged. A slower
 // phase of the VM; back to back with stop 41's build: 2M 14.4, 14.8, 15.0, 14.0 s (26.0 s CPU)
 // against 14.5, 15.2, 15.1, 14.9 s (26.9 s CPU), 804-831 MB (triangulation 3.87-4.11 against
-// 4.27-4.42); 100K 1.29 s against 1.33 s.
+// 4.27-4.42); 100K 1.29 s against 1.33 s. 08:00 UTC, with step 8's coarse projections beside its
+// split and flips and column_means' parallel sort too, an even slower phase: 2M 16.0, 15.2, 14.9 s
+// (28.1-30.1 s CPU), 807-827 MB against 17.2, 16.2, 15.8 s (29.0-31.6 s CPU), 821-902 MB.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
