@@ -658,7 +658,7 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
     const KdTree& tree = mls->tree();
     const std::vector<Scalar>& sq = data.spacing;
     progress.update(0.1);
-    // 4's landing of a vertex: what depends on its position alone (not on the mesh).
+    // Step 4's landing of a vertex: what depends on its position alone (not on the mesh).
     // Newton steps onto the zero set of the field first (the mesh of steps 6-7 can lie
     // off it: same-sign and hole-fill vertices), at most `reach` in all; then the MLS
     // projection, and the nearest sample to where the vertex would land.
