@@ -10,6 +10,7 @@
 /// kintsugi::KdTree tree(points);                 // any PointSet
 /// std::vector<kintsugi::Neighbor> nn;
 /// tree.knn(q, 10, nn);                            // sorted, squared distances
+/// tree.knn_within(q, 10, r * r, nn);             // the same, cut at distance r
 /// tree.radius_search_squared(q, r * r, nn);      // all within distance r, sorted
 /// tree.radius_search_squared(q, r * r, nn, false);  // same set, tree order (faster)
 /// kintsugi::KdTree coarse(points, {.leaf_size = 32});  // other bucket size
