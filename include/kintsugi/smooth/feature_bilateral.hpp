@@ -468,6 +468,18 @@ inline DataScales scales_from_noise(Scalar r) {
     return {std::max<Scalar>(0.14, Scalar(0.5) * (r - Scalar(0.05))), iterations};
 }
 
+/// Face iterations after the automatic low-pass, from r0 = σ/|e| of the input (before
+/// the low-pass; |e| the clean edge length, NoiseLevel::relative): clamp(round(1 + 7·r0), 1, 8). The low-pass brings every strong noise to
+/// about 0.2|e|, so the mapping above on the noise after it gave 3 iterations at every
+/// level; the noise the low-pass leaves is smoother the stronger the input's, and the face
+/// filters need more iterations to remove it (Block at 0.7|e|: 3 → 6 iterations, 9.5° →
+/// 8.4°). Chosen on the Block, SharpSphere, Twelve and fertility at 0.1-0.8|e|; measured in
+/// docs/methods/feature_bilateral.md ("Face iterations from the input's noise").
+inline std::size_t face_iterations_after_lowpass(Scalar r0) {
+    const Scalar f = std::round(1 + 7 * std::max<Scalar>(r0, 0));
+    return static_cast<std::size_t>(std::clamp<Scalar>(f, 1, 8));
+}
+
 inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
     return {std::move(fd.strength), std::move(fd.eigenvalues), std::move(fd.eigenvectors),
             std::move(fd.sharp_edges), fd.candidate_vertices, L, fd.anchored_faces, fd.coplanar_sharp_edges};
@@ -675,6 +687,9 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             result.noise_estimated = true;
         }
         result.noise_after_lowpass = result.noise;
+        // σ / |e| of the input with |e| its clean estimate (edges lengthened by the noise
+        // taken off), before the low-pass moves anything.
+        const Scalar r_input = result.noise.relative;
         if (params.lowpass_iterations ? *params.lowpass_iterations > 0
                                       : result.noise_estimated && params.lowpass_noise > 0 &&
                                             result.noise.sigma > params.lowpass_noise * L) {
@@ -685,7 +700,11 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             L = fbs::checked_mean_edge(fn, m.vertices, topo);
         }
         const Scalar sigma = result.noise_after_lowpass.sigma;
-        const fbs::DataScales auto_scales = fbs::scales_from_noise(sigma / L);
+        fbs::DataScales auto_scales = fbs::scales_from_noise(sigma / L);
+        // The automatic low-pass on: the iterations follow the input's noise, whether or
+        // not the low-pass had to run (see face_iterations_after_lowpass).
+        if (!params.lowpass_iterations && params.lowpass_noise > 0)
+            auto_scales.face_iterations = fbs::face_iterations_after_lowpass(r_input);
         result.d = params.d ? *params.d : auto_scales.d;
         result.face_iterations = params.face_iterations ? *params.face_iterations : auto_scales.face_iterations;
         result.normal_iterations = params.normal_iterations;
