@@ -47,6 +47,11 @@
 //   1.13-1.24 s); Taubin(30) 0.22 s; peak growth 165 / 640 MB at 147K / 590K faces (x3.87).
 //   Pairs: Block0.4 4.81/0.138 (features=false 7.31), SharpSphere0.3 7.56/0.146 (7.02),
 //   Twelve0.5Imp. 7.67/0.147. Noise table (seven shapes, three held out): 261 s wall (README).
+// 2026-12-05 (face iterations from the input's noise, round(1 + 7r); rim vertices move along
+//   their normal in the low-pass): 589,824 faces 3.88 s wall twice against 4.19 / 4.22 s for the
+//   build before, back to back (6.6 against 7.3 s CPU; two face iterations instead of three).
+//   Block0.4 4.46/0.139. Noise table with nine shapes (bun_zipper and elephant added, unseen by
+//   every choice): 313 s wall (README).
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

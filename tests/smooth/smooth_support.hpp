@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <cmath>
 #include <cstdio>
@@ -195,12 +196,29 @@ using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
 
 /// CGAL::Polygon_mesh_processing::smooth_shape (implicit mean-curvature flow) with
 /// time step `time` and `iterations`; vertex order is kept.
+/// Vertices no face uses are left out of the CGAL mesh: with them (bun_zipper.ply has
+/// 1,113) its solve fails and the mesh comes back unchanged.
 inline void cgal_smooth_shape(ks::IndexedMesh& m, double time, unsigned iterations) {
+    constexpr ks::Index unused = std::numeric_limits<ks::Index>::max();
+    std::vector<ks::Index> slot(m.vertices.size(), unused);
+    ks::IndexedMesh used;
+    for (const auto& f : m.faces) {
+        ks::Face g;
+        for (int k = 0; k < 3; ++k) {
+            if (slot[f[k]] == unused) {
+                slot[f[k]] = used.vertices.size();
+                used.vertices.push_back(m.vertices[f[k]]);
+            }
+            g[k] = slot[f[k]];
+        }
+        used.faces.push_back(g);
+    }
     SurfaceMesh sm;
-    ks::assign_mesh(sm, m);
+    ks::assign_mesh(sm, used);
     CGAL::Polygon_mesh_processing::smooth_shape(sm, time,
                                                 CGAL::parameters::number_of_iterations(iterations));
-    for (std::size_t v = 0; v < m.vertices.size(); ++v) m.vertices[v] = ks::vertex_position(sm, v);
+    for (std::size_t v = 0; v < m.vertices.size(); ++v)
+        if (slot[v] != unused) m.vertices[v] = ks::vertex_position(sm, slot[v]);
 }
 
 /// CGAL's smooth_shape at its best (by normal error against `clean`) over a sweep of time
