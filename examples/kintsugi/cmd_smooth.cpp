@@ -146,6 +146,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["detection_prefilter_scale"] = r.detection.prefilter_scale;
         j["parameters"]["d_from_noise"] = !params.d.has_value();
         j["parameters"]["face_iterations_from_noise"] = !params.face_iterations.has_value();
+        j["parameters"]["normal_iterations_from_noise"] = !params.normal_iterations.has_value() && r.noise_estimated;
         j["parameters"]["lowpass_noise"] = params.lowpass_noise;
         j["parameters"]["lowpass_iterations"] = r.lowpass_iterations;
         j["parameters"]["lowpass_iterations_from_noise"] = !params.lowpass_iterations.has_value();

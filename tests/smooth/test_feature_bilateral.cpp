@@ -928,6 +928,30 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         CHECK(rh.face_iterations > 3);
         CHECK(rh.face_iterations <= 8);
     }
+    SUBCASE("light noise: three normal passes (ten flattened curved detail), ten with the low-pass") {
+        ks::IndexedMesh twelve = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
+        twelve.normals.clear();
+        const double L = ks::mean_edge_length(twelve);
+        const auto light = ss::add_gaussian_noise(twelve, 0.1 * L, true, 11);
+        auto ours = light, ten = light;
+        const auto r = ks::smooth_feature_bilateral(ours);
+        const auto r10 = ks::smooth_feature_bilateral(ten, {.normal_iterations = 10});
+        CHECK(r.noise.relative < 0.2);
+        CHECK(r.normal_iterations == 3);
+        CHECK(r10.normal_iterations == 10);
+        CHECK(r10.face_iterations == r.face_iterations);
+        const double e = ks::denoise_metrics(ours, twelve).mean_normal_angle_deg;
+        const double e10 = ks::denoise_metrics(ten, twelve).mean_normal_angle_deg;
+        MESSAGE("twelve.obj at 0.1|e|: 3 normal passes " << e << " deg, 10 passes " << e10);
+        CHECK(e < e10 - 1.0);
+        auto strong = ss::add_gaussian_noise(twelve, 0.5 * L, true, 11);
+        const auto rs = ks::smooth_feature_bilateral(strong);
+        CHECK(rs.lowpass_iterations > 0);
+        CHECK(rs.normal_iterations == 10);
+        // Both d and the face iterations given: no estimate, ten passes.
+        auto given = light;
+        CHECK(ks::smooth_feature_bilateral(given, {.d = 0.14, .face_iterations = 2}).normal_iterations == 10);
+    }
     SUBCASE("explicit values win and skip the estimate; the output is that of the same values set by hand") {
         const auto noisy = ss::add_gaussian_noise(clean, 0.8 * L0, true, 3);
         auto a = noisy, b = noisy;
