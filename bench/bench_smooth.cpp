@@ -48,10 +48,11 @@
 //   Pairs: Block0.4 4.81/0.138 (features=false 7.31), SharpSphere0.3 7.56/0.146 (7.02),
 //   Twelve0.5Imp. 7.67/0.147. Noise table (seven shapes, three held out): 261 s wall (README).
 // 2026-12-05 (face iterations from the input's noise, round(1 + 7r); rim vertices move along
-//   their normal in the low-pass): 589,824 faces 3.88 s wall twice against 4.19 / 4.22 s for the
-//   build before, back to back (6.6 against 7.3 s CPU; two face iterations instead of three).
-//   Block0.4 4.46/0.139. Noise table with nine shapes (bun_zipper and elephant added, unseen by
-//   every choice): 313 s wall (README).
+//   their normal in the low-pass; filter-3 passes 3 up to 0.15|e|, 10 from 0.2|e|): 589,824
+//   faces 3.68 / 3.84 s wall against 4.07 / 4.16 s for the build before, back to back (6.3-6.6
+//   against 7.0-7.2 s CPU; two face iterations of six passes instead of three of ten).
+//   Block0.4 4.46/0.139. Noise table with nine shapes (bun_zipper and elephant added after the
+//   face-iteration rule): 313-397 s wall (README).
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
