@@ -467,7 +467,7 @@ inline std::size_t lowpass(std::vector<Vec3>& V, const std::vector<Face>& F, con
     // Rim vertices (boundary edges only, none non-manifold) move too, but only along their
     // normal: their umbrella points into the surface, and moving along it would pull hole
     // rims and open borders inward; fixed, they kept their noise (CGAL's elephant-with-holes,
-    // half its vertices on 106 rims, at 0.5|e|: 23.3° against 20.1° moving them freely).
+    // half its vertices on 106 rims, at 0.5|e|: 23.3° fixed, 20.8° moving along the normal).
     std::vector<std::uint8_t> rim_flag(V.size(), 0);  // 1 rim, 2 non-manifold
     for (std::size_t e = 0; e < topo.num_edges(); ++e) {
         const std::size_t nf = topo.edge_faces(e).size();
@@ -534,10 +534,10 @@ inline DataScales scales_from_noise(Scalar r) {
 }
 
 /// Face iterations after the automatic low-pass, from r0 = σ/|e| of the input (before
-/// the low-pass; |e| the clean edge length, NoiseLevel::relative): clamp(round(1 + 7·r0), 1, 8).
-/// The low-pass brings every strong noise to about 0.2|e|, so the mapping above on the noise after it gave 3 iterations at every
-/// level; the noise the low-pass leaves is smoother the stronger the input's, and the face
-/// filters need more iterations to remove it (Block at 0.7|e|: 3 → 6 iterations, 9.5° →
+/// the low-pass; |e| the clean edge length, NoiseLevel::relative): clamp(round(1 + 7·r0),
+/// 1, 8). The low-pass brings every strong noise to about 0.2|e|, so the mapping above on
+/// the noise after it gave 3 iterations at every level; the noise the low-pass leaves is
+/// smoother the stronger the input's, and the face filters need more iterations to remove it (Block at 0.7|e|: 3 → 6 iterations, 9.5° →
 /// 8.4°). Chosen on the Block, SharpSphere, Twelve and fertility at 0.1-0.8|e|; measured in
 /// docs/methods/feature_bilateral.md ("Face iterations from the input's noise").
 inline std::size_t face_iterations_after_lowpass(Scalar r0) {
