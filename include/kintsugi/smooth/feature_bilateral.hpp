@@ -72,9 +72,9 @@
 /// - Sharp edges bound the face filters (`separate_features`): in filters 3 and 4 a face
 ///   of the cube counts only when a walk over the cube's faces reaches it from r's own
 ///   faces without crossing a sharp edge.
-/// - Face filter scales: c = 1, d = 0.14 (or from the noise, below), ten filter-3 and two
-///   filter-4 passes per face iteration, three face iterations or more from the noise
-///   (paper: c = 2, d = 0.1, one, one, two).
+/// - Face filter scales: c = 1, d = 0.14 (or from the noise, below), 3–10 filter-3 and two
+///   filter-4 passes per face iteration, 1–8 face iterations, both from the noise (paper:
+///   c = 2, d = 0.1, one, one, two).
 /// - Filters 1–2 run again after the face filters (`edge_vertex_motion`, below).
 /// - Creases under impulsive noise from the faces it left in their planes
 ///   (`coplanar_creases`, below).
@@ -127,9 +127,13 @@
 /// operator; rim vertices moving along their normal only, those of non-manifold edges
 /// fixed) run first, the noise
 /// re-estimated after each, until it is at most `lowpass_noise`·|e| (0.2), at most 20
-/// steps; d, the face iterations and the strong-noise rule are then set from the noise
-/// after the low-pass (`noise_after_lowpass`, `lowpass_iterations` in the result), and
-/// |e| is the low-passed mesh's. Below 0.2|e| (clean meshes read 0–0.15) nothing changes.
+/// steps; d and the strong-noise rule are then set from the noise after the low-pass
+/// (`noise_after_lowpass`, `lowpass_iterations` in the result), and |e| is the low-passed
+/// mesh's; the face iterations and the filter-3 passes come from the input's noise
+/// whenever the automatic low-pass is enabled, whether or not it runs a step (see
+/// face_iterations_after_lowpass and normal_iterations_from_noise, whose r is σ over the
+/// clean edge length, NoiseLevel::relative). Below 0.2|e| (clean meshes read 0–0.15) no
+/// step runs.
 /// Measured (normal error, defaults before → after; docs/methods/feature_bilateral.md):
 /// Block at 0.5 / 0.7 / 0.8|e| 7.5 / 11.0 / 15.5° → 6.4 / 9.5 / 10.9°, SharpSphere 15.2 /
 /// 25.9 / 32.7° → 9.7 / 11.9 / 13.1°, fertility 16.3 / 27.8 / 33.0° → 10.9 / 12.5 / 13.3°;
@@ -341,7 +345,8 @@ struct FeatureBilateralResult {
     /// Taubin steps of the low-pass run before the filters (0 when none ran).
     std::size_t lowpass_iterations = 0;
     /// The noise level after the low-pass (model units; `noise` when no step ran), from
-    /// which d, the face iterations and the strong-noise rule were set.
+    /// which d and the strong-noise rule were set (the face iterations too when the
+    /// automatic low-pass is off; with it they follow `noise`).
     NoiseLevel noise_after_lowpass{};
 };
 
@@ -468,13 +473,15 @@ inline std::size_t lowpass(std::vector<Vec3>& V, const std::vector<Face>& F, con
     // normal: their umbrella points into the surface, and moving along it would pull hole
     // rims and open borders inward; fixed, they kept their noise (CGAL's elephant-with-holes,
     // half its vertices on 106 rims, at 0.5|e|: 23.3° fixed, 20.8° moving along the normal).
-    std::vector<std::uint8_t> rim_flag(V.size(), 0);  // 1 rim, 2 non-manifold
+    std::vector<std::uint8_t> rim_flag(V.size(), 0);  // 1 rim, 2 non-manifold or self edge (fixed)
     for (std::size_t e = 0; e < topo.num_edges(); ++e) {
         const std::size_t nf = topo.edge_faces(e).size();
         if (nf == 2) continue;
-        for (Index v : topo.edges()[e]) {
+        const auto& ab = topo.edges()[e];
+        const bool rim_edge = nf == 1 && ab[0] != ab[1];  // a self edge (repeated index) is no rim
+        for (Index v : ab) {
             movable[v] = 0;
-            rim_flag[v] = std::max<std::uint8_t>(rim_flag[v], nf == 1 ? 1 : 2);
+            rim_flag[v] = std::max<std::uint8_t>(rim_flag[v], rim_edge ? 1 : 2);
         }
     }
     std::vector<Index> rim;
