@@ -50,6 +50,15 @@ using TaubinResult = VertexSubsetResult;
 
 namespace detail {
 
+/// The umbrella vector U(v) = mean of v's one-ring − v (v must have a neighbour).
+inline Vec3 umbrella(const std::vector<Vec3>& positions, const MeshTopology& topo, Index v) {
+    const auto nb = topo.vertex_neighbors(v);
+    Vec3 mean = Vec3::Zero();
+    for (Index u : nb) mean += positions[u];
+    mean /= static_cast<Scalar>(nb.size());
+    return mean - positions[v];
+}
+
 /// Smooths `positions` in place over the one-rings of `topo`; only vertices with
 /// movable[v] != 0 (all when movable is empty) move. Uniform umbrella operator
 /// U(v) = mean(neighbours) − v, Jacobi updates (deterministic, parallel).
@@ -62,11 +71,7 @@ inline std::size_t taubin_smooth(std::vector<Vec3>& positions, const MeshTopolog
     auto step = [&](Scalar factor) {
         parallel_for(0, active.size(), [&](std::size_t i) {
             const Index v = active[i];
-            const auto nb = topo.vertex_neighbors(v);
-            Vec3 mean = Vec3::Zero();
-            for (Index u : nb) mean += positions[u];
-            mean /= static_cast<Scalar>(nb.size());
-            next[i] = positions[v] + factor * (mean - positions[v]);
+            next[i] = positions[v] + factor * umbrella(positions, topo, v);
         }, 1024);
         for (std::size_t i = 0; i < active.size(); ++i) positions[active[i]] = next[i];
     };

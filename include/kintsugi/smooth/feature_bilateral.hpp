@@ -487,28 +487,15 @@ inline std::size_t lowpass(std::vector<Vec3>& V, const std::vector<Face>& F, con
     std::vector<Index> rim;
     for (std::size_t v = 0; v < V.size(); ++v)
         if (rim_flag[v] == 1 && !(hold && !hold->empty() && (*hold)[v])) rim.push_back(static_cast<Index>(v));
-    std::vector<std::vector<Index>> rim_faces(rim.size());
-    {
-        constexpr Index none = std::numeric_limits<Index>::max();
-        std::vector<Index> slot(V.size(), none);
-        for (std::size_t i = 0; i < rim.size(); ++i) slot[rim[i]] = static_cast<Index>(i);
-        for (std::size_t f = 0; f < F.size(); ++f)
-            for (Index v : F[f])
-                if (slot[v] != none) rim_faces[slot[v]].push_back(static_cast<Index>(f));
-    }
     std::vector<Vec3> rim_next(rim.size());
     auto rim_step = [&](Scalar factor) {
         parallel_for(0, rim.size(), [&](std::size_t i) {
             const Index v = rim[i];
-            Vec3 n = Vec3::Zero();
-            for (Index f : rim_faces[i])
+            Vec3 n = Vec3::Zero();  // area-weighted normal
+            for (Index f : topo.vertex_faces(v))
                 n += (V[F[f][1]] - V[F[f][0]]).cross(V[F[f][2]] - V[F[f][0]]);
-            const auto nb = topo.vertex_neighbors(v);
-            Vec3 mean = Vec3::Zero();
-            for (Index u : nb) mean += V[u];
-            mean /= static_cast<Scalar>(nb.size());
             const Scalar len = n.norm();
-            rim_next[i] = len > 0 ? V[v] + factor * n.dot(mean - V[v]) / (len * len) * n : V[v];
+            rim_next[i] = len > 0 ? V[v] + factor * n.dot(detail::umbrella(V, topo, v)) / (len * len) * n : V[v];
         }, 1024);
         for (std::size_t i = 0; i < rim.size(); ++i) V[rim[i]] = rim_next[i];
     };
@@ -544,8 +531,8 @@ inline DataScales scales_from_noise(Scalar r) {
 /// the low-pass; |e| the clean edge length, NoiseLevel::relative): clamp(round(1 + 7·r0),
 /// 1, 8). The low-pass brings every strong noise to about 0.2|e|, so the mapping above on
 /// the noise after it gave 3 iterations at every level; the noise the low-pass leaves is
-/// smoother the stronger the input's, and the face filters need more iterations to remove it (Block at 0.7|e|: 3 → 6 iterations, 9.5° →
-/// 8.4°). Chosen on the Block, SharpSphere, Twelve and fertility at 0.1-0.8|e|; measured in
+/// smoother the stronger the input's, and the face filters need more iterations to remove
+/// it (Block at 0.7|e|: 3 → 6 iterations, 9.5° → 8.4°). Chosen on the Block, SharpSphere, Twelve and fertility at 0.1-0.8|e|; measured in
 /// docs/methods/feature_bilateral.md ("Face iterations from the input's noise").
 inline std::size_t face_iterations_after_lowpass(Scalar r0) {
     const Scalar f = std::round(1 + 7 * std::max<Scalar>(r0, 0));
