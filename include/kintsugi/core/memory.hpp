@@ -65,11 +65,26 @@ template <class T>
     return v;
 }
 
+/// The glibc tunables use_huge_page_malloc sets (see there).
+inline constexpr const char* kept_heap_tunables =
+    "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=4294967296:glibc.malloc.trim_threshold=4294967296:"
+    "glibc.malloc.arena_max=1";
+
+/// Whether the program asked glibc to keep freed memory (GLIBC_TUNABLES sets
+/// glibc.malloc.trim_threshold, as use_huge_page_malloc does).
+[[nodiscard]] inline bool heap_kept() noexcept {
+    const char* tunables = std::getenv("GLIBC_TUNABLES");
+    return tunables != nullptr && std::strstr(tunables, "glibc.malloc.trim_threshold=") != nullptr;
+}
+
 /// Gives the pages of freed heap memory back to the system (glibc's malloc_trim). glibc
 /// keeps the memory of freed small blocks resident (a triangulation's cells, per-thread
 /// buffers), and the next stage's large buffers come from new pages, so both count in the
 /// peak: 2M points at level 9 had 355 MB free but resident before the graph cut (983 ->
-/// 658 MB resident after the call). A no-op on other C libraries.
+/// 658 MB resident after the call). Called where a stage that frees many small blocks
+/// ends and one that allocates large buffers starts; elsewhere, when the heap is kept
+/// (heap_kept()), a trim would only make the next allocations fault in new pages. A
+/// no-op on other C libraries.
 inline void release_free_memory() noexcept {
 #if defined(__GLIBC__)
     (void)malloc_trim(0);
@@ -88,17 +103,26 @@ namespace kintsugi {
 }
 
 /// @brief For programs, called first in main: on Linux with glibc, runs the program
-/// again (execv of /proc/self/exe, same arguments) with glibc's allocator on
-/// transparent huge pages (GLIBC_TUNABLES=glibc.malloc.hugetlb=1, read only at start),
-/// so that every large allocation, not only kintsugi's own buffers (advise_huge_pages),
-/// avoids a page fault per 4 KiB. Measured on the 2-core VM (bunny00, 2M points,
-/// reconstruct_pu_graphcut at level 9): 28.1 / 22.0 s without, 20.7 / 19.0 s with, the
-/// same peaks and the same output. The `kintsugi` CLI and bench_reconstruct call it.
+/// again (execv of /proc/self/exe, same arguments) with glibc's allocator on transparent
+/// huge pages and keeping the memory it is given (GLIBC_TUNABLES, read only at start:
+/// detail::kept_heap_tunables).
 ///
-/// Does nothing (and returns) off Linux/glibc, when the kernel's THP mode is "never",
-/// when GLIBC_TUNABLES already sets glibc.malloc.hugetlb, when KINTSUGI_NO_HUGE_PAGES is
-/// set (e.g. under valgrind, which would not follow the execv), or when the execv fails.
-/// The results never depend on it.
+/// - glibc.malloc.hugetlb=1: every large allocation, not only kintsugi's own buffers
+///   (advise_huge_pages), avoids a page fault per 4 KiB. Measured on the 2-core VM
+///   (bunny00, 2M points, reconstruct_pu_graphcut at level 9): 28.1 / 22.0 s without,
+///   20.7 / 19.0 s with, the same peaks and the same output.
+/// - mmap_threshold and trim_threshold 4 GiB, arena_max 1: freed memory stays in one
+///   heap and later stages reuse it, instead of faulting in new pages that the system
+///   has to clear (on the benchmark VM, memory first touched after some idle time comes
+///   at 0.4-0.6 GB/s, against 5-15 GB/s when it was used a moment before); the
+///   reconstruction still trims the heap where a peak would otherwise grow
+///   (detail::release_free_memory). Measured in docs/methods/pu_graphcut.md, "Memory
+///   the system has to back": the same output.
+///
+/// The `kintsugi` CLI and bench_reconstruct call it. Does nothing (and returns) off
+/// Linux/glibc, when the kernel's THP mode is "never", when GLIBC_TUNABLES already sets
+/// glibc.malloc.hugetlb, when KINTSUGI_NO_HUGE_PAGES is set (e.g. under valgrind, which
+/// would not follow the execv), or when the execv fails. The results never depend on it.
 /// @param argv main's argv (argv[0] first, null-terminated)
 inline void use_huge_page_malloc(char** argv) noexcept {
 #if defined(__linux__) && defined(__GLIBC__)
@@ -112,8 +136,8 @@ inline void use_huge_page_malloc(char** argv) noexcept {
             (line.find("[madvise]") == std::string::npos && line.find("[always]") == std::string::npos))
             return;
         const std::string value = tunables != nullptr && *tunables != 0
-                                      ? std::string(tunables) + ":glibc.malloc.hugetlb=1"
-                                      : std::string("glibc.malloc.hugetlb=1");
+                                      ? std::string(tunables) + ":" + detail::kept_heap_tunables
+                                      : std::string(detail::kept_heap_tunables);
         if (setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
     } catch (...) {
         return;

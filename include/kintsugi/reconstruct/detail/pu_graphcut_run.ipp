@@ -122,7 +122,9 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
                     // The fit holds its own copy of the samples it uses; the input's is freed.
                     std::vector<Vec3>().swap(data_pts);
                     std::vector<Vec3>().swap(data_nrm);
-                    release_free_memory();
+                    // (With the heap kept, CGAL's cells reuse that memory instead: trimming
+                    // here made them fault in new pages, and the stage's peak no lower.)
+                    if (!heap_kept()) release_free_memory();
                 }
                 // The paper's sign (> 0 inside) from here on: f_pu, f, the graph and the labels.
                 // The sites in Morton order (the supports come in the cover's random order):
