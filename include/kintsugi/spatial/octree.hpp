@@ -607,13 +607,37 @@ private:
         descend_classified(level, code, a[0], a[1], a[2], first, last, cls, classify, visit, next);
     }
 
-    // First index in [b, e) whose code is >= code.
+    // First index in [b, e) whose code is >= code (e when there is none), for b <= e.
+    // Over a large range the block table (locate_code) narrows the search first: the
+    // answer lies between the cell holding the corner of code's block and the one after
+    // the cell holding the next block's corner. A binary search over a node's whole range
+    // missed the cache at every step (30 % of the descents' time in the support cover).
     [[nodiscard]] Index find_code(Index b, Index e, std::uint64_t code) const {
+        if (e - b > 32) {
+            const std::uint64_t blk = code >> block_shift_;
+            const Index first = std::min(std::max(b, block_start_[blk]), e);
+            const Index after = blk + 1 < block_start_.size() ? block_start_[blk + 1] + 1 : codes_.size();
+            b = first;
+            e = std::max(first, std::min(e, after));
+        }
         if (e - b <= 32) {
             while (b < e && codes_[b] < code) ++b;
             return b;
         }
-        return static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(b),
+        // Galloping from b: a child's first cell is often just after the previous one's,
+        // whose memory was just read.
+        if (codes_[b] >= code) return b;
+        Index lo = b;  // codes_[lo] < code
+        for (Index step = 1;; step *= 2) {
+            const Index p = lo + step;
+            if (p >= e) break;
+            if (codes_[p] >= code) {
+                e = p + 1;
+                break;
+            }
+            lo = p;
+        }
+        return static_cast<Index>(std::lower_bound(codes_.begin() + static_cast<std::ptrdiff_t>(lo + 1),
                                                    codes_.begin() + static_cast<std::ptrdiff_t>(e), code) -
                                   codes_.begin());
     }
