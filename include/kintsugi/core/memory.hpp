@@ -67,7 +67,7 @@ template <class T>
 
 /// The glibc tunables use_huge_page_malloc sets (see there).
 inline constexpr const char* kept_heap_tunables =
-    "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=4294967296:glibc.malloc.trim_threshold=4294967296:"
+    "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=134217728:glibc.malloc.trim_threshold=4294967296:"
     "glibc.malloc.arena_max=1";
 
 /// Whether the program asked glibc to keep freed memory (GLIBC_TUNABLES sets
@@ -111,13 +111,15 @@ namespace kintsugi {
 ///   (advise_huge_pages), avoids a page fault per 4 KiB. Measured on the 2-core VM
 ///   (bunny00, 2M points, reconstruct_pu_graphcut at level 9): 28.1 / 22.0 s without,
 ///   20.7 / 19.0 s with, the same peaks and the same output.
-/// - mmap_threshold and trim_threshold 4 GiB, arena_max 1: freed memory stays in one
-///   heap and later stages reuse it, instead of faulting in new pages that the system
-///   has to clear (on the benchmark VM, memory first touched after some idle time comes
-///   at 0.4-0.6 GB/s, against 5-15 GB/s when it was used a moment before); the
-///   reconstruction still trims the heap where a peak would otherwise grow
-///   (detail::release_free_memory). Measured in docs/methods/pu_graphcut.md, "Memory
-///   the system has to back": the same output.
+/// - mmap_threshold 128 MiB, trim_threshold 4 GiB, arena_max 1: freed blocks below
+///   128 MiB stay in one heap and later stages reuse them, instead of faulting in new
+///   pages that the system has to clear (on the benchmark VM, memory first touched after
+///   some idle time comes at 0.4-0.6 GB/s, against 5-15 GB/s when it was used a moment
+///   before); larger blocks still go back when freed (a 4 GiB threshold raised the 10M
+///   run's peak from 3.51 to 3.81 GB; 128 MiB to 3.65 GB), and the reconstruction still
+///   trims the heap where a peak would otherwise grow (detail::release_free_memory).
+///   Measured in docs/methods/pu_graphcut.md, "Memory the system has to back": the same
+///   output.
 ///
 /// The `kintsugi` CLI and bench_reconstruct call it. Does nothing (and returns) off
 /// Linux/glibc, when the kernel's THP mode is "never", when GLIBC_TUNABLES already sets
