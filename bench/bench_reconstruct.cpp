@@ -131,6 +131,12 @@
 // 4.27-4.42); 100K 1.29 s against 1.33 s. 08:00 UTC, with step 8's coarse projections beside its
 // split and flips and column_means' parallel sort too, an even slower phase: 2M 16.0, 15.2, 14.9 s
 // (28.1-30.1 s CPU), 807-827 MB against 17.2, 16.2, 15.8 s (29.0-31.6 s CPU), 821-902 MB.
+// 2026-12-05 13:30 UTC (stop 44; docs/methods/pu_graphcut.md, "Memory the system has to back"):
+// use_huge_page_malloc keeps freed blocks below 128 MiB in one heap, octree descents through the
+// block table; output unchanged. Back to back with stop 43's build: 2M 13.69, 13.47, 13.76 s
+// (25.3-25.8 s CPU, 0.8-1.3 s system) against 15.06, 13.49, 13.93 s (25.6-28.1 s CPU, 1.0-2.3 s
+// system), 849-895 MB against 821-847 MB. 10M: 63.4 s / 116.6 s CPU, 3649 MB against huge pages
+// alone 65.9 s / 121.1 s CPU, 3510 MB.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
