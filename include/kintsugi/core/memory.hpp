@@ -70,12 +70,15 @@ inline constexpr const char* kept_heap_tunables =
     "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=134217728:glibc.malloc.trim_threshold=4294967296:"
     "glibc.malloc.arena_max=1";
 
+/// Whether GLIBC_TUNABLES (glibc reads it only at start) holds `text`.
+[[nodiscard]] inline bool glibc_tunables_contain(const char* text) noexcept {
+    const char* tunables = std::getenv("GLIBC_TUNABLES");
+    return tunables != nullptr && std::strstr(tunables, text) != nullptr;
+}
+
 /// Whether the program asked glibc to keep freed memory (GLIBC_TUNABLES sets
 /// glibc.malloc.trim_threshold, as use_huge_page_malloc does).
-[[nodiscard]] inline bool heap_kept() noexcept {
-    const char* tunables = std::getenv("GLIBC_TUNABLES");
-    return tunables != nullptr && std::strstr(tunables, "glibc.malloc.trim_threshold=") != nullptr;
-}
+[[nodiscard]] inline bool heap_kept() noexcept { return glibc_tunables_contain("glibc.malloc.trim_threshold="); }
 
 /// Gives the pages of freed heap memory back to the system (glibc's malloc_trim). glibc
 /// keeps the memory of freed small blocks resident (a triangulation's cells, per-thread
@@ -98,8 +101,7 @@ namespace kintsugi {
 /// Whether glibc's allocator runs on transparent huge pages in this process (GLIBC_TUNABLES
 /// holds glibc.malloc.hugetlb=1, as use_huge_page_malloc sets it); what a program reports.
 [[nodiscard]] inline bool huge_page_malloc_on() noexcept {
-    const char* tunables = std::getenv("GLIBC_TUNABLES");
-    return tunables != nullptr && std::strstr(tunables, "glibc.malloc.hugetlb=1") != nullptr;
+    return detail::glibc_tunables_contain("glibc.malloc.hugetlb=1");
 }
 
 /// @brief For programs, called first in main: on Linux with glibc, runs the program
@@ -129,8 +131,8 @@ namespace kintsugi {
 inline void use_huge_page_malloc(char** argv) noexcept {
 #if defined(__linux__) && defined(__GLIBC__)
     if (argv == nullptr || argv[0] == nullptr || std::getenv("KINTSUGI_NO_HUGE_PAGES") != nullptr) return;
+    if (detail::glibc_tunables_contain("glibc.malloc.hugetlb")) return;
     const char* tunables = std::getenv("GLIBC_TUNABLES");
-    if (tunables != nullptr && std::strstr(tunables, "glibc.malloc.hugetlb") != nullptr) return;
     try {
         std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
         std::string line;
