@@ -184,11 +184,9 @@ public:
     /// The cell containing the finest-grid cell with Morton code `code`.
     [[nodiscard]] Index locate_code(std::uint64_t code) const {
         // A table over a coarse grid narrows the binary search to one block.
-        const std::uint64_t b = code >> block_shift_;
-        const auto lo = static_cast<std::ptrdiff_t>(block_start_[b]);
-        const auto hi = b + 1 < block_start_.size() ? static_cast<std::ptrdiff_t>(block_start_[b + 1]) + 1
-                                                    : static_cast<std::ptrdiff_t>(codes_.size());
-        auto it = std::upper_bound(codes_.begin() + lo, codes_.begin() + hi, code);
+        const auto [lo, hi] = block_cells(code);
+        auto it = std::upper_bound(codes_.begin() + static_cast<std::ptrdiff_t>(lo),
+                                   codes_.begin() + static_cast<std::ptrdiff_t>(hi), code);
         return static_cast<Index>(it - codes_.begin()) - 1;
     }
 
@@ -607,18 +605,23 @@ private:
         descend_classified(level, code, a[0], a[1], a[2], first, last, cls, classify, visit, next);
     }
 
+    // The cells [first, last) that can hold code or start at it: from the cell holding the
+    // corner of code's block (the lookup table) to the one after the cell holding the next
+    // block's corner.
+    [[nodiscard]] std::pair<Index, Index> block_cells(std::uint64_t code) const {
+        const std::uint64_t blk = code >> block_shift_;
+        return {block_start_[blk], blk + 1 < block_start_.size() ? block_start_[blk + 1] + 1 : codes_.size()};
+    }
+
     // First index in [b, e) whose code is >= code (e when there is none), for b <= e.
-    // Over a large range the block table (locate_code) narrows the search first: the
-    // answer lies between the cell holding the corner of code's block and the one after
-    // the cell holding the next block's corner. A binary search over a node's whole range
+    // Over a large range the block table narrows the search first (block_cells: the
+    // answer lies within those cells). A binary search over a node's whole range
     // missed the cache at every step (30 % of the descents' time in the support cover).
     [[nodiscard]] Index find_code(Index b, Index e, std::uint64_t code) const {
         if (e - b > 32) {
-            const std::uint64_t blk = code >> block_shift_;
-            const Index first = std::min(std::max(b, block_start_[blk]), e);
-            const Index after = blk + 1 < block_start_.size() ? block_start_[blk + 1] + 1 : codes_.size();
-            b = first;
-            e = std::max(first, std::min(e, after));
+            const auto [lo, hi] = block_cells(code);
+            b = std::min(std::max(b, lo), e);
+            e = std::max(b, std::min(e, hi));
         }
         if (e - b <= 32) {
             while (b < e && codes_[b] < code) ++b;
