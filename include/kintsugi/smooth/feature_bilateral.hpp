@@ -532,8 +532,9 @@ inline DataScales scales_from_noise(Scalar r) {
 /// 1, 8). The low-pass brings every strong noise to about 0.2|e|, so the mapping above on
 /// the noise after it gave 3 iterations at every level; the noise the low-pass leaves is
 /// smoother the stronger the input's, and the face filters need more iterations to remove
-/// it (Block at 0.7|e|: 3 → 6 iterations, 9.5° → 8.4°). Chosen on the Block, SharpSphere, Twelve and fertility at 0.1-0.8|e|; measured in
-/// docs/methods/feature_bilateral.md ("Face iterations from the input's noise").
+/// it (Block at 0.7|e|: 3 → 6 iterations, 9.5° → 8.4°). Chosen on the Block, SharpSphere,
+/// Twelve and fertility at 0.1-0.8|e|; measured in docs/methods/feature_bilateral.md
+/// ("Face iterations from the input's noise").
 inline std::size_t face_iterations_after_lowpass(Scalar r0) {
     const Scalar f = std::round(1 + 7 * std::max<Scalar>(r0, 0));
     return static_cast<std::size_t>(std::clamp<Scalar>(f, 1, 8));
