@@ -305,8 +305,9 @@ TEST_CASE_TEMPLATE("Octree: over any PointSet container", Container, VecPts, Poi
 }
 
 // The cells of a ball with their 8 corners inside, among a wanted subset, as the PU
-// cover asks for them: visit_cells_sparse (with a classify that says 2 for nodes
-// inside the ball) and visit_cells with a skip must both give the brute-force answer.
+// cover asks for them: visit_cells_in_ball, visit_cells_sparse (with a classify that
+// says 2 for nodes inside the ball) and visit_cells with a skip must all give the
+// brute-force answer.
 TEST_CASE("Octree: sparse visits of the cells inside a ball match brute force") {
     const auto pts = sample_points(3000, 21);
     const ks::Octree t(pts, {.max_level = 7});
@@ -335,22 +336,26 @@ TEST_CASE("Octree: sparse visits of the cells inside a ball match brute force") 
         std::vector<ks::Index> expect;
         for (ks::Index i = 0; i < t.size(); ++i)
             if (wanted[i] && far2(c, t.cell_min(i), t.cell_max(i)) < r * r) expect.push_back(i);
-        for (int variant = 0; variant < 2; ++variant) {
+        for (int variant = 0; variant < 3; ++variant) {
             std::vector<ks::Index> got;
-            int last = 0;
             auto classify = [&](const ks::Vec3& lo, const ks::Vec3& hi) {
                 ks::Vec3 n = c.cwiseMax(lo).cwiseMin(hi);
-                if (!((n - c).squaredNorm() < r * r)) return last = 0;
-                return last = far2(c, lo, hi) < r * r ? 2 : 1;
+                if (!((n - c).squaredNorm() < r * r)) return 0;
+                return far2(c, lo, hi) < r * r ? 2 : 1;
             };
+            // visit_cells*: the cells whose box classified non-zero; keep those inside
             auto visit = [&](ks::Index i) {
-                if (last == 2 && wanted[i]) got.push_back(i);
+                if (wanted[i] && far2(c, t.cell_min(i), t.cell_max(i)) < r * r) got.push_back(i);
             };
             const ks::Vec3 lo = c - ks::Vec3::Constant(r), hi = c + ks::Vec3::Constant(r);
             if (variant == 0)
                 t.visit_cells_sparse(lo, hi, classify, visit, next);
-            else
+            else if (variant == 1)
                 t.visit_cells(lo, hi, classify, visit, skip);
+            else  // only cells inside the ball; those `next` does not offer are filtered here
+                t.visit_cells_in_ball(c, r, [&](ks::Index i) {
+                    if (wanted[i]) got.push_back(i);
+                }, next);
             CHECK(got == expect);  // Morton order = index order, each once
         }
         total += expect.size();

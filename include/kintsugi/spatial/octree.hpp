@@ -256,7 +256,9 @@ public:
     void visit_cells(Classify&& classify, Visit&& visit) const {
         if (codes_.empty()) return;
         auto every = [](Index first, Index) { return first; };
-        descend(0, 0, 0, codes_.size(), classify, visit, every);
+        const BoxClasses<Classify> classes{classify};
+        auto visit_wanted = [&](Index c, int) { visit(c); };
+        descend(0, 0, 0, codes_.size(), classes, visit_wanted, every);
     }
 
     /// Same as visit_cells(classify, visit), restricted to the cells that meet the box
@@ -287,57 +289,29 @@ public:
     /// `next` would not offer (single-cell nodes and leaf children are visited without it).
     template <class Classify, class Visit, class Next>
     void visit_cells_sparse(const Vec3& lo, const Vec3& hi, Classify&& classify, Visit&& visit, Next&& next) const {
-        if (codes_.empty()) return;
-        const Scalar n = static_cast<Scalar>(std::uint64_t{1} << max_level_);
-        std::array<std::int64_t, 3> a{}, b{};
-        for (int k = 0; k < 3; ++k) {
-            const Scalar tl = std::floor((lo[k] - cube_min_[k]) / unit_);
-            const Scalar th = std::floor((hi[k] - cube_min_[k]) / unit_);
-            if (!(th >= 0) || !(tl < n)) return;  // disjoint from the cube (or NaN)
-            a[k] = tl <= 0 ? 0 : static_cast<std::int64_t>(tl);
-            b[k] = th >= n - 1 ? static_cast<std::int64_t>(n) - 1 : static_cast<std::int64_t>(th);
-        }
-        // Deepest level m whose nodes are at least as large as the box's extent.
-        const std::int64_t ext = std::max({b[0] - a[0], b[1] - a[1], b[2] - a[2]}) + 1;
-        int m = max_level_;
-        while (m > 0 && (std::int64_t{1} << (max_level_ - m)) < ext) --m;
-        const int sh = max_level_ - m;
-        Index last_visited = npos;
-        auto visit_once = [&](Index c) {
-            // a coarse cell can contain several start nodes: visit it once
-            if (c == last_visited) return;
-            last_visited = c;
-            visit(c);
+        const BoxClasses<Classify> classes{classify};
+        auto visit_wanted = [&](Index c, int) { visit(c); };
+        visit_from_start_nodes(lo, hi, classes, visit_wanted, next);
+    }
+
+    /// The cells whose closed box lies in the open ball (c, r), that is whose 8 corners
+    /// are closer than r to c, among those `next` offers (as in visit_cells_sparse:
+    /// nodes for which `next` offers no cell are pruned), in Morton order. The support
+    /// cover's query (which cells a new support covers): the 8 children of a node are
+    /// classified together from per-axis terms (each child's squared distances are sums
+    /// of one term per axis), with the same arithmetic as classifying each box alone.
+    template <class Visit, class Next>
+    void visit_cells_in_ball(const Vec3& c, Scalar r, Visit&& visit, Next&& next) const {
+        // A cell in the ball has its centre closer than r - (its half diagonal) to c, and
+        // no cell is smaller than the finest one: nodes farther than r_in from c hold none.
+        const Scalar half_diag_min =
+            Scalar(0.5) * std::sqrt(Scalar(3)) * side_ / static_cast<Scalar>(1u << max_level_);
+        const Scalar r_in = std::max(Scalar(0), r - half_diag_min);
+        const BallClasses classes{c, r_in * r_in, r * r};
+        auto visit_inside = [&](Index cell, int cls) {
+            if (cls == 2) visit(cell);
         };
-        auto classify_ref = [&](const Vec3& l, const Vec3& h) { return classify(l, h); };
-        // Start nodes in Morton order (their codes at level m, sorted).
-        std::array<std::uint64_t, 8> starts{};
-        int ns = 0;
-        for (std::int64_t z = a[2] >> sh; z <= (b[2] >> sh); ++z)
-            for (std::int64_t y = a[1] >> sh; y <= (b[1] >> sh); ++y)
-                for (std::int64_t x = a[0] >> sh; x <= (b[0] >> sh); ++x)
-                    starts[static_cast<std::size_t>(ns++)] =
-                        morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                                              static_cast<std::uint32_t>(z)) << (3 * sh);
-        for (int i = 1; i < ns; ++i)  // insertion sort of at most 8 codes
-            for (int j = i; j > 0 && starts[static_cast<std::size_t>(j)] < starts[static_cast<std::size_t>(j - 1)]; --j)
-                std::swap(starts[static_cast<std::size_t>(j)], starts[static_cast<std::size_t>(j - 1)]);
-        for (int i = 0; i < ns; ++i) {
-            const std::uint64_t code = starts[static_cast<std::size_t>(i)];
-            const Index first = locate_code(code);
-            if (levels_[first] <= static_cast<std::uint32_t>(m)) {
-                // the node lies inside one cell
-                if (first == last_visited) continue;
-                const Vec3 cl = cell_min(first);
-                if (static_cast<int>(classify(cl, Vec3(cl + Vec3::Constant(cell_side(first))))) != 0) visit_once(first);
-                continue;
-            }
-            // the node holds whole cells (it is not inside one): its last cell is the one
-            // holding its last finest-grid cell (a table-narrowed search, not one over
-            // every cell after `first`)
-            const Index last = locate_code(code + (std::uint64_t{1} << (3 * sh)) - 1) + 1;
-            descend(static_cast<std::uint32_t>(m), code, first, last, classify_ref, visit_once, next);
-        }
+        visit_from_start_nodes(c - Vec3::Constant(r_in), c + Vec3::Constant(r_in), classes, visit_inside, next);
     }
 
     /// The cells whose closed box intersects the closed box [lo, hi] (input units),
@@ -591,18 +565,130 @@ private:
             out.push_back(j);
     }
 
+    // How the descents classify boxes: box(lo, hi) one box (0: no wanted cell in it,
+    // 2: every cell in it wanted, 1: otherwise); children(lo, hi, out) the 8 children of
+    // a node, child k spanning [lo[a][(k >> a) & 1], hi[a][(k >> a) & 1]] on axis a.
+    template <class Classify>
+    struct BoxClasses {
+        Classify& f;
+        int box(const Vec3& lo, const Vec3& hi) const { return static_cast<int>(f(lo, hi)); }
+        void children(const Scalar (&lo)[3][2], const Scalar (&hi)[3][2], int (&out)[8]) const {
+            for (int k = 0; k < 8; ++k) {
+                const int bx = k & 1, by = (k >> 1) & 1, bz = k >> 2;
+                out[k] = box(Vec3(lo[0][bx], lo[1][by], lo[2][bz]), Vec3(hi[0][bx], hi[1][by], hi[2][bz]));
+            }
+        }
+    };
+    // The ball (c, r): 0 when the box is at least r_in from c, 2 when its farthest corner
+    // is closer than r, 1 otherwise. Squared distances summed axis by axis in order x, y, z
+    // (the same sums whether a box is classified alone or with its siblings).
+    struct BallClasses {
+        Vec3 c;
+        Scalar r_in2, r2;
+        static Scalar near_term(Scalar c, Scalar lo, Scalar hi) {
+            const Scalar t = c < lo ? lo - c : (c > hi ? c - hi : Scalar(0));
+            return t * t;
+        }
+        static Scalar far_term(Scalar c, Scalar lo, Scalar hi) {
+            const Scalar a = std::max(std::abs(c - lo), std::abs(c - hi));
+            return a * a;
+        }
+        int box(const Vec3& lo, const Vec3& hi) const {
+            Scalar n = 0, f = 0;
+            for (int k = 0; k < 3; ++k) {
+                n += near_term(c[k], lo[k], hi[k]);
+                f += far_term(c[k], lo[k], hi[k]);
+            }
+            return !(n < r_in2) ? 0 : (f < r2 ? 2 : 1);
+        }
+        void children(const Scalar (&lo)[3][2], const Scalar (&hi)[3][2], int (&out)[8]) const {
+            Scalar n[3][2], f[3][2];
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 2; ++b) {
+                    n[a][b] = near_term(c[a], lo[a][b], hi[a][b]);
+                    f[a][b] = far_term(c[a], lo[a][b], hi[a][b]);
+                }
+            for (int k = 0; k < 8; ++k) {
+                const int bx = k & 1, by = (k >> 1) & 1, bz = k >> 2;
+                const Scalar nk = Scalar(0) + n[0][bx] + n[1][by] + n[2][bz];
+                const Scalar fk = Scalar(0) + f[0][bx] + f[1][by] + f[2][bz];
+                out[k] = !(nk < r_in2) ? 0 : (fk < r2 ? 2 : 1);
+            }
+        }
+    };
+
+    // The descent over the nodes that meet the box [lo, hi] (input units): it starts at
+    // the at most 8 nodes of the level whose side fits the box. visit(c, cls) gets each
+    // cell reached with a non-zero class (its own box's, or 2 from a node holding it),
+    // once, in Morton order.
+    template <class Classes, class Visit, class Next>
+    void visit_from_start_nodes(const Vec3& lo, const Vec3& hi, const Classes& classes, Visit& visit,
+                                Next& next) const {
+        if (codes_.empty()) return;
+        const Scalar n = static_cast<Scalar>(std::uint64_t{1} << max_level_);
+        std::array<std::int64_t, 3> a{}, b{};
+        for (int k = 0; k < 3; ++k) {
+            const Scalar tl = std::floor((lo[k] - cube_min_[k]) / unit_);
+            const Scalar th = std::floor((hi[k] - cube_min_[k]) / unit_);
+            if (!(th >= 0) || !(tl < n)) return;  // disjoint from the cube (or NaN)
+            a[k] = tl <= 0 ? 0 : static_cast<std::int64_t>(tl);
+            b[k] = th >= n - 1 ? static_cast<std::int64_t>(n) - 1 : static_cast<std::int64_t>(th);
+        }
+        // Deepest level m whose nodes are at least as large as the box's extent.
+        const std::int64_t ext = std::max({b[0] - a[0], b[1] - a[1], b[2] - a[2]}) + 1;
+        int m = max_level_;
+        while (m > 0 && (std::int64_t{1} << (max_level_ - m)) < ext) --m;
+        const int sh = max_level_ - m;
+        Index last_visited = npos;
+        auto visit_once = [&](Index c, int cls) {
+            // a coarse cell can contain several start nodes: visit it once
+            if (c == last_visited) return;
+            last_visited = c;
+            visit(c, cls);
+        };
+        // Start nodes in Morton order (their codes at level m, sorted).
+        std::array<std::uint64_t, 8> starts{};
+        int ns = 0;
+        for (std::int64_t z = a[2] >> sh; z <= (b[2] >> sh); ++z)
+            for (std::int64_t y = a[1] >> sh; y <= (b[1] >> sh); ++y)
+                for (std::int64_t x = a[0] >> sh; x <= (b[0] >> sh); ++x)
+                    starts[static_cast<std::size_t>(ns++)] =
+                        morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                              static_cast<std::uint32_t>(z)) << (3 * sh);
+        for (int i = 1; i < ns; ++i)  // insertion sort of at most 8 codes
+            for (int j = i; j > 0 && starts[static_cast<std::size_t>(j)] < starts[static_cast<std::size_t>(j - 1)]; --j)
+                std::swap(starts[static_cast<std::size_t>(j)], starts[static_cast<std::size_t>(j - 1)]);
+        for (int i = 0; i < ns; ++i) {
+            const std::uint64_t code = starts[static_cast<std::size_t>(i)];
+            const Index first = locate_code(code);
+            if (levels_[first] <= static_cast<std::uint32_t>(m)) {
+                // the node lies inside one cell
+                if (first == last_visited) continue;
+                const Vec3 cl = cell_min(first);
+                const int cls = classes.box(cl, Vec3(cl + Vec3::Constant(cell_side(first))));
+                if (cls != 0) visit_once(first, cls);
+                continue;
+            }
+            // the node holds whole cells (it is not inside one): its last cell is the one
+            // holding its last finest-grid cell (a table-narrowed search, not one over
+            // every cell after `first`)
+            const Index last = locate_code(code + (std::uint64_t{1} << (3 * sh)) - 1) + 1;
+            descend(static_cast<std::uint32_t>(m), code, first, last, classes, visit_once, next);
+        }
+    }
+
     // Node (level, code) covering cells [first, last): pruned when `next` offers none of
     // its cells, else classified, then handed to descend_classified.
-    template <class Classify, class Visit, class Next>
-    void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, Classify& classify,
+    template <class Classes, class Visit, class Next>
+    void descend(std::uint32_t level, std::uint64_t code, Index first, Index last, const Classes& classes,
                  Visit& visit, Next& next) const {
         if (last - first > 1 && next(first, last) >= last) return;
         const auto a = morton_decode(code);
         const Scalar s = unit_ * static_cast<Scalar>(std::uint32_t{1} << (max_level_ - static_cast<int>(level)));
         const Vec3 lo(cube_min_[0] + unit_ * a[0], cube_min_[1] + unit_ * a[1], cube_min_[2] + unit_ * a[2]);
-        const int cls = static_cast<int>(classify(lo, Vec3(lo[0] + s, lo[1] + s, lo[2] + s)));
+        const int cls = classes.box(lo, Vec3(lo[0] + s, lo[1] + s, lo[2] + s));
         if (cls == 0) return;
-        descend_classified(level, code, a[0], a[1], a[2], first, last, cls, classify, visit, next);
+        descend_classified(level, code, a[0], a[1], a[2], first, last, cls, classes, visit, next);
     }
 
     // The cells [first, last) that can hold code or start at it: from the cell holding the
@@ -646,50 +732,57 @@ private:
     }
 
     // Node (level, code, minimum corner (x, y, z) in finest units) covering cells
-    // [first, last), just classified `cls` != 0 (no classify call since, so a visit
-    // made here follows the classify of a box holding the visited cell). Children are
-    // classified first and their cell ranges looked up only when needed: the leaves
-    // tile the node, so child k's first cell has exactly the child's code, and a leaf
-    // child needs no search for its end.
-    template <class Classify, class Visit, class Next>
+    // [first, last), just classified `cls` != 0. Its 8 children are classified together,
+    // and their cell ranges looked up only when needed: the leaves tile the node, so child
+    // k's first cell has exactly the child's code, and a leaf child needs no search for
+    // its end.
+    template <class Classes, class Visit, class Next>
     void descend_classified(std::uint32_t level, std::uint64_t code, std::uint32_t x, std::uint32_t y,
-                            std::uint32_t z, Index first, Index last, int cls, Classify& classify, Visit& visit,
-                            Next& next) const {
+                            std::uint32_t z, Index first, Index last, int cls, const Classes& classes,
+                            Visit& visit, Next& next) const {
         if (levels_[first] <= level) {
-            visit(first);
+            visit(first, cls);
             return;
         }
         if (cls >= 2) {
             // every cell is wanted: enumerate those `next` still offers
-            for (Index c = next(first, last); c < last; c = next(c + 1, last)) visit(c);
+            for (Index c = next(first, last); c < last; c = next(c + 1, last)) visit(c, 2);
             return;
         }
         const int shift = 3 * (max_level_ - static_cast<int>(level) - 1);
         const std::uint32_t half = std::uint32_t{1} << (max_level_ - static_cast<int>(level) - 1);
         const Scalar hs = unit_ * static_cast<Scalar>(half);
+        const std::uint32_t corner[3] = {x, y, z};
+        Scalar lo[3][2], hi[3][2];
+        for (int a = 0; a < 3; ++a)
+            for (int h = 0; h < 2; ++h) {
+                lo[a][h] = cube_min_[a] + unit_ * (corner[a] + (h ? half : 0));
+                hi[a][h] = lo[a][h] + hs;
+            }
+        int child_cls[8];
+        classes.children(lo, hi, child_cls);
         const bool eight_leaves = last - first == 8;  // then cell first + k is child k
         Index b = first;  // no child examined later starts before b
         for (std::uint32_t k = 0; k < 8; ++k) {
-            const std::uint32_t cx = x + ((k & 1) ? half : 0), cy = y + ((k & 2) ? half : 0),
-                                cz = z + ((k & 4) ? half : 0);
-            const Vec3 lo(cube_min_[0] + unit_ * cx, cube_min_[1] + unit_ * cy, cube_min_[2] + unit_ * cz);
-            const int ccls = static_cast<int>(classify(lo, Vec3(lo[0] + hs, lo[1] + hs, lo[2] + hs)));
+            const int ccls = child_cls[k];
             if (ccls == 0) continue;
             if (eight_leaves) {
-                visit(first + k);
+                visit(first + k, ccls);
                 continue;
             }
             const std::uint64_t child = code + (std::uint64_t{k} << shift);
             const Index cb = find_code(b, last, child);
             if (levels_[cb] <= level + 1) {  // the child is a leaf
-                visit(cb);
+                visit(cb, ccls);
                 b = cb + 1;
                 continue;
             }
             const Index ce = k == 7 ? last : find_code(cb + 1, last, child + (std::uint64_t{1} << shift));
             b = ce;
             if (next(cb, ce) >= ce) continue;
-            descend_classified(level + 1, child, cx, cy, cz, cb, ce, ccls, classify, visit, next);
+            const std::uint32_t cx = x + ((k & 1) ? half : 0), cy = y + ((k & 2) ? half : 0),
+                                cz = z + ((k & 4) ? half : 0);
+            descend_classified(level + 1, child, cx, cy, cz, cb, ce, ccls, classes, visit, next);
         }
     }
 

@@ -190,16 +190,6 @@ inline PUSupportData pu_compute_support(const PUCoverInput& in, Index cell) {
     return out;
 }
 
-/// Squared distance from c to the farthest point of the box [lo, hi].
-inline Scalar pu_box_far_squared(const Vec3& c, const Vec3& lo, const Vec3& hi) {
-    Scalar d2 = 0;
-    for (int k = 0; k < 3; ++k) {
-        const Scalar a = std::max(std::abs(c[k] - lo[k]), std::abs(c[k] - hi[k]));
-        d2 += a * a;
-    }
-    return d2;
-}
-
 /// The seeded random order of the candidates (Fisher-Yates on mt19937_64, whose
 /// output sequence is fixed by the standard, so the order is portable). 32-bit: the
 /// shuffle's swaps miss the cache, and half the bytes took 12M cells from 0.51 to 0.36 s.
@@ -300,8 +290,8 @@ struct PUCoverStats {
 ///
 /// Cost (bunny00 with 10 % outliers, 1 thread, 2026-11-23): 2M points at level 9
 /// (12M cells, 609K supports) 18.7 s, of which about 40 % finding the cells inside
-/// each ball (Octree::visit_cells_sparse over the uncovered set) and 35 % the radius
-/// searches and fits; 100K at level 8 (1.1M cells) ~1.4 s. The uncovered set as a
+/// each ball (now Octree::visit_cells_in_ball over the uncovered set) and 35 % the
+/// radius searches and fits; 100K at level 8 (1.1M cells) ~1.4 s. The uncovered set as a
 /// hierarchical bit set (instead of per-64-cell counters) and children classified
 /// before their cell ranges are searched took 2M from 28.2 s to 18.7 s, same supports.
 template <class ProgressFn>
@@ -317,8 +307,6 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
     PUCellSet uncovered(n);
     auto next_uncovered = [&](Index first, Index last) { return uncovered.next(first, last); };
     std::vector<PUSupportData> supports;
-    const Scalar half_diag_min =
-        Scalar(0.5) * std::sqrt(Scalar(3)) * oct.cube_side() / static_cast<Scalar>(1u << oct.max_level());
     std::size_t remaining = n;
     std::size_t pos = 0;
     // Batch size only changes how much speculative work is wasted, never the result:
@@ -356,26 +344,10 @@ std::vector<PUSupportData> pu_cover(const PUCoverInput& in, PUCoverStats& stats,
             const PUSupportData& s = b.fits[k];
             auto& list = b.inside[k];
             list.clear();
-            const Scalar r2 = s.r * s.r;
-            // A cell inside the ball has its centre closer than r - (half diagonal) to c,
-            // and no cell is smaller than the finest one: nodes farther than r_in from c
-            // hold no cell inside the ball.
-            const Scalar r_in = std::max(Scalar(0), s.r - half_diag_min);
-            const Scalar r_in2 = r_in * r_in;
-            int last_class = 0;
-            // visit(c) comes right after classify on c's own box or on a node holding c
-            // (Octree::visit_cells_sparse), so last_class == 2 says that c has its 8 corners
-            // in the ball (the farthest corner closer than r).
-            oct.visit_cells_sparse(
-                s.c - Vec3::Constant(r_in), s.c + Vec3::Constant(r_in),
-                [&](const Vec3& lo, const Vec3& hi) {
-                    if (!(box_squared_distance(s.c, lo, hi) < r_in2)) return last_class = 0;
-                    return last_class = (pu_box_far_squared(s.c, lo, hi) < r2 ? 2 : 1);
-                },
-                [&](Index c) {
-                    if (last_class == 2 && uncovered.contains(c)) list.push_back(c);
-                },
-                next_uncovered);
+            // the cells with their 8 corners in the ball, among the uncovered ones
+            oct.visit_cells_in_ball(s.c, s.r, [&](Index c) {
+                if (uncovered.contains(c)) list.push_back(c);
+            }, next_uncovered);
         }, 1);
     };
     auto accept = [&](const Batch& b) {
