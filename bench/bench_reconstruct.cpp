@@ -137,6 +137,12 @@
 // (25.3-25.8 s CPU, 0.8-1.3 s system) against 15.06, 13.49, 13.93 s (25.6-28.1 s CPU, 1.0-2.3 s
 // system), 849-895 MB against 821-847 MB. 10M: 63.4 s / 116.6 s CPU, 3649 MB against huge pages
 // alone 65.9 s / 121.1 s CPU, 3510 MB.
+// 2026-12-05 16:30 UTC (stop 45; docs/methods/pu_graphcut.md, "the support cover's query"): the
+// cover lists each ball's cells with Octree::visit_cells_in_ball; output unchanged. Back to back
+// with stop 44's build, a fast phase of the VM: 2M 12.48, 12.57, 12.26 s (23.1-23.7 s CPU, cover
+// 5.40-5.53 s), 820-905 MB against 12.81, 13.25, 12.78 s (24.2-25.1 s CPU, cover 5.86-6.21 s),
+// 819-877 MB; 10M 58.7 s / 107.6 s CPU, 3581 MB against 68.4 s / 123.9 s CPU, 3578 MB. In a slow
+// phase minutes later: 2M 15.2-15.7 s with either build.
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
