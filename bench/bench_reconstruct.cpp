@@ -142,7 +142,7 @@
 // with stop 44's build, a fast phase of the VM: 2M 12.48, 12.57, 12.26 s (23.1-23.7 s CPU, cover
 // 5.40-5.53 s), 820-905 MB against 12.81, 13.25, 12.78 s (24.2-25.1 s CPU, cover 5.86-6.21 s),
 // 819-877 MB; 10M 58.7 s / 107.6 s CPU, 3581 MB against 68.4 s / 123.9 s CPU, 3578 MB. In a slow
-// phase minutes later: 2M 15.2-15.7 s with either build.
+// phase minutes later: 2M 15.7 s (15.2-15.7 s with kd-tree leaf sizes 32 and 128).
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff
