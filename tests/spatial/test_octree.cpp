@@ -361,4 +361,10 @@ TEST_CASE("Octree: sparse visits of the cells inside a ball match brute force") 
         total += expect.size();
     }
     CHECK(total > 100);
+    // A ball of radius 0, negative or NaN holds no cell.
+    for (const double r : {0.0, -1.0, std::nan("")}) {
+        std::size_t seen = 0;
+        t.visit_cells_in_ball(t.cell_center(0), r, [&](ks::Index) { ++seen; }, next);
+        CHECK(seen == 0);
+    }
 }

@@ -295,11 +295,12 @@ public:
     }
 
     /// The cells whose closed box lies in the open ball (c, r), that is whose 8 corners
-    /// are closer than r to c, among those `next` offers (as in visit_cells_sparse:
-    /// nodes for which `next` offers no cell are pruned), in Morton order. The support
-    /// cover's query (which cells a new support covers): the 8 children of a node are
-    /// classified together from per-axis terms (each child's squared distances are sums
-    /// of one term per axis), with the same arithmetic as classifying each box alone.
+    /// are closer than r to c, in Morton order, each once. `next` prunes as in
+    /// visit_cells_sparse (nodes for which it offers no cell are skipped; `visit` may still
+    /// see a cell it would not offer, so the caller filters). r <= 0 or NaN visits nothing.
+    /// The support cover's query (which cells a new support covers): the 8 children of a
+    /// node are classified together from per-axis terms (each child's squared distances
+    /// are sums of one term per axis), with the same arithmetic as classifying each box alone.
     template <class Visit, class Next>
     void visit_cells_in_ball(const Vec3& c, Scalar r, Visit&& visit, Next&& next) const {
         // A cell in the ball has its centre closer than r - (its half diagonal) to c, and
