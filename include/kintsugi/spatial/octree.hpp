@@ -594,13 +594,11 @@ private:
             const Scalar a = std::max(std::abs(c - lo), std::abs(c - hi));
             return a * a;
         }
+        // The class from the squared near and far distances.
+        int of(Scalar n, Scalar f) const { return !(n < r_in2) ? 0 : (f < r2 ? 2 : 1); }
         int box(const Vec3& lo, const Vec3& hi) const {
-            Scalar n = 0, f = 0;
-            for (int k = 0; k < 3; ++k) {
-                n += near_term(c[k], lo[k], hi[k]);
-                f += far_term(c[k], lo[k], hi[k]);
-            }
-            return !(n < r_in2) ? 0 : (f < r2 ? 2 : 1);
+            return of(near_term(c[0], lo[0], hi[0]) + near_term(c[1], lo[1], hi[1]) + near_term(c[2], lo[2], hi[2]),
+                      far_term(c[0], lo[0], hi[0]) + far_term(c[1], lo[1], hi[1]) + far_term(c[2], lo[2], hi[2]));
         }
         void children(const Scalar (&lo)[3][2], const Scalar (&hi)[3][2], int (&out)[8]) const {
             Scalar n[3][2], f[3][2];
@@ -611,9 +609,7 @@ private:
                 }
             for (int k = 0; k < 8; ++k) {
                 const int bx = k & 1, by = (k >> 1) & 1, bz = k >> 2;
-                const Scalar nk = Scalar(0) + n[0][bx] + n[1][by] + n[2][bz];
-                const Scalar fk = Scalar(0) + f[0][bx] + f[1][by] + f[2][bz];
-                out[k] = !(nk < r_in2) ? 0 : (fk < r2 ? 2 : 1);
+                out[k] = of(n[0][bx] + n[1][by] + n[2][bz], f[0][bx] + f[1][by] + f[2][bz]);
             }
         }
     };
