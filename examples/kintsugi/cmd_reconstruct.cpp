@@ -83,6 +83,10 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                            real_text(kcli::reconstruct::rbf_default_smoothing()) + ", 0 interpolates)")
             ->capture_default_str()
             ->check(kcli::real(0.0, 1e6));
+    cmd.add_option("--far-site-band", p.far_site_band,
+                   "Thin the untrusted supports farther than this many trusted radii from the surface (0 keeps all)")
+        ->capture_default_str()
+        ->check(kcli::real(0.0, 1e6));
     cmd.add_option("--max-handle-loop", p.max_handle_loop,
                    "Cut handles/tunnels a loop of at most this many median mesh edges goes around (0 keeps all)")
         ->capture_default_str()
@@ -99,7 +103,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ->check(CLI::IsMember({"graphcut", "sign"}));
     cmd.add_flag("--inward-normals", o->inward, "Input normals point into the object (the paper's convention)");
     for (const char* name :
-         {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--max-handle-loop", "--refine-spacing",
+         {"--max-level", "--epsilon", "--k", "--triangulation-weight-scale", "--far-site-band", "--max-handle-loop",
+          "--refine-spacing",
           "--refine-neighbors", "--labeling"})
         o->pu_only.push_back(cmd.get_option(name));
     o->rbf = kcli::reconstruct::add_rbf_options(cmd, o->rbf_only);
@@ -155,6 +160,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["epsilon"] = p.epsilon;
         j["parameters"]["k"] = p.k;
         j["parameters"]["triangulation_weight_scale"] = p.triangulation_weight_scale;
+        j["parameters"]["far_site_band"] = p.far_site_band;
         j["parameters"]["smoothing_iterations"] = p.smoothing_iterations;
         j["parameters"]["max_handle_loop"] = p.max_handle_loop;
         j["parameters"]["refine_spacing"] = p.refine_spacing;
@@ -167,6 +173,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["octree_cells"] = r.octree_cells;
         j["supports"] = r.supports;
         j["hidden_supports"] = r.hidden_supports;
+        j["thinned_supports"] = r.thinned_supports;
         j["outer_vertices"] = r.outer_vertices;
         j["tetrahedra"] = r.tetrahedra;
         j["graph_nodes"] = r.graph_nodes;
@@ -189,7 +196,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["closed"] = rep.closed;
         j["manifold"] = rep.manifold;
         ctx.info("reconstructed " + std::to_string(r.points) + " points (" + std::to_string(r.supports) +
-                 " supports, " + std::to_string(r.hidden_supports) + " hidden, graph " +
+                 " supports, " + std::to_string(r.hidden_supports) + " hidden, " +
+                 std::to_string(r.thinned_supports) + " thinned, graph " +
                  std::to_string(r.graph_nodes) + " nodes / " + std::to_string(r.graph_edges) + " edges) -> " +
                  std::to_string(rep.vertices) + " vertices, " + std::to_string(rep.faces) + " faces, " +
                  std::to_string(rep.components) + " component(s), genus " + std::to_string(rep.genus) +

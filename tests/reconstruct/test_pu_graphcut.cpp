@@ -45,10 +45,12 @@ struct Outcome {
     double mean = 0, max = 0;  // relative to the diagonal
 };
 
-Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* keep = nullptr) {
+Outcome run_shape(const Shape& s, ks::Labeling labeling, ks::PUGraphcutResult* keep = nullptr,
+                  double far_site_band = ks::PUGraphcutParams{}.far_site_band, std::size_t samples = 20000) {
     std::vector<ks::Vec3> pts, nrm;
-    kintsugi_test::sample_shape(s, 20000, 0.001, 0.10, 42, pts, nrm);
-    const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm), {.labeling = labeling});
+    kintsugi_test::sample_shape(s, samples, 0.001, 0.10, 42, pts, nrm);
+    const auto r = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm),
+                                               {.labeling = labeling, .far_site_band = far_site_band});
     REQUIRE(r.status == ks::Status::ok);
     Outcome o;
     const auto rep = check_guarantee(r.mesh);
@@ -96,7 +98,8 @@ TEST_CASE("reconstruct_pu_graphcut: sphere with 10 % outliers -> one closed genu
     CHECK(r.points == 22000);
     CHECK(r.supports > 0);
     CHECK(r.supports <= r.octree_cells);
-    CHECK(r.graph_nodes == r.supports - r.hidden_supports + r.outer_vertices);
+    CHECK(r.graph_nodes == r.supports - r.hidden_supports - r.thinned_supports + r.outer_vertices);
+    CHECK(r.thinned_supports > 0);
     CHECK(r.graph_edges > r.graph_nodes);
     CHECK(r.cut_value > 0);
     CHECK(r.parts == 1);
@@ -114,9 +117,33 @@ TEST_CASE("reconstruct_pu_graphcut: sphere with 10 % outliers -> one closed genu
                                        << rs.handles_removed);
     CHECK(sign.components > gc.components);
     CHECK(sign.mean > 5 * gc.mean);
+    CHECK(rs.thinned_supports == 0);  // the sign of every support decides: none is thinned
     // Its surface is perforated by hundreds of small handles (genus 440 over 18
     // components, measured): step 7 removes nearly all (430) without splitting any.
     CHECK(rs.handles_removed >= 400);
+}
+
+TEST_CASE("reconstruct_pu_graphcut: far sites thinned — fewer graph nodes, the same surface") {
+    // The torus with 10 % outliers with every support a vertex (far_site_band 0, the
+    // paper) and with the far untrusted ones thinned (the default).
+    const Shape torus{1};
+    ks::PUGraphcutResult all, thin;
+    const Outcome a = run_shape(torus, ks::Labeling::graphcut, &all, 0, 60000);
+    const Outcome t = run_shape(torus, ks::Labeling::graphcut, &thin, ks::PUGraphcutParams{}.far_site_band, 60000);
+    MESSAGE("torus, every support: nodes " << all.graph_nodes << " mean " << a.mean << " max " << a.max
+                                           << "; thinned " << thin.thinned_supports << ": nodes " << thin.graph_nodes
+                                           << " mean " << t.mean << " max " << t.max);
+    CHECK(all.thinned_supports == 0);
+    CHECK(all.graph_nodes == all.supports - all.hidden_supports + all.outer_vertices);
+    CHECK(thin.supports == all.supports);  // the field is the same
+    CHECK(thin.graph_nodes == thin.supports - thin.hidden_supports - thin.thinned_supports + thin.outer_vertices);
+    // Measured: 816 of 29.5K supports thinned here (the band, 8 trusted radii, spans most of
+    // this small box); 343K of 609K in the 2M bench input at level 9.
+    CHECK(thin.thinned_supports > 0);
+    CHECK(t.components == 1);
+    CHECK(t.genus == 1);
+    CHECK(t.mean <= 1.1 * a.mean);
+    CHECK(t.max <= 1.1 * a.max);
 }
 
 TEST_CASE("reconstruct_pu_graphcut: torus with 10 % outliers -> one closed genus-1 surface") {
@@ -465,6 +492,8 @@ TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the pr
     expect(pts, nrm, {.refine_spacing = -1}, "refine_spacing");
     expect(pts, nrm, {.refine_spacing = std::numeric_limits<double>::quiet_NaN()}, "refine_spacing");
     expect(pts, nrm, {.refine_neighbors = 3}, "refine_neighbors");
+    expect(pts, nrm, {.far_site_band = -1}, "far_site_band");
+    expect(pts, nrm, {.far_site_band = std::numeric_limits<double>::quiet_NaN()}, "far_site_band");
     expect(pts, nrm, {.max_handle_loop = -1}, "max_handle_loop");
     expect(pts, nrm, {.max_handle_loop = std::numeric_limits<double>::infinity()}, "max_handle_loop");
     expect(pts, nrm, {.max_level = 0}, "max_level");

@@ -96,20 +96,76 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             factors[i] = trusted_support(sup[i]) ? Scalar(1) : params.untrusted_weight;
         const PUField tfield = params.untrusted_weight == 1 ? field : field.reweighted(std::move(factors));
         std::vector<Index> trusted;
+        std::vector<std::uint8_t> trusted_site(ns, 0);
         for (std::size_t i = 0; i < ns; ++i)
-            if (trusted_support(sup[i])) trusted.push_back(i);
+            if (trusted_support(sup[i])) {
+                trusted.push_back(i);
+                trusted_site[i] = 1;
+            }
         if (trusted.empty())
             for (std::size_t i = 0; i < ns; ++i) trusted.push_back(i);
+
+        // The terminal values of the untrusted sites and the outer layer first: they decide
+        // which sites the triangulation needs (below). The median signed distance to the
+        // tangent planes g_j of the 7 nearest trusted supports, in Morton order (nearby
+        // queries read nearby memory of the kd-tree).
+        const std::size_t n_sites = sites.size();
+        std::vector<Scalar> site_f(n_sites), site_f_pu(n_sites);
+        const std::vector<Index> along = morton_order(sites);
+        {
+            std::vector<Vec3> origins(trusted.size());
+            for (std::size_t j = 0; j < trusted.size(); ++j) origins[j] = sup[trusted[j]].origin;
+            const auto origin_tree = KdTree::adopt(std::move(origins));
+            parallel_for(0, n_sites, [&](std::size_t j) {
+                const std::size_t i = along[j];
+                const bool outer = i >= ns;
+                if (!outer && trusted_site[i]) return;
+                constexpr std::size_t planes = 7;  // odd: the median is one plane's value
+                const std::size_t kp = std::min(planes, trusted.size());
+                // Most untrusted sites lie far from every trusted support, where a plain
+                // k-nearest search visits much of the tree; the previous query's planes
+                // (any kp of them bound the kp-th distance; the sites come along the
+                // Morton curve, so they are near) bound it. The planes found are the same.
+                thread_local std::vector<Neighbor> nbs;
+                Scalar bound = std::numeric_limits<Scalar>::max();
+                if (nbs.size() == kp) {
+                    bound = 0;
+                    for (const auto& nb : nbs)
+                        bound = std::max(bound, (origin_tree.point(nb.index) - sites[i]).squaredNorm());
+                }
+                origin_tree.knn_within(sites[i], kp, bound, nbs);
+                thread_local std::vector<Scalar> ds;
+                ds.clear();
+                for (const auto& nb : nbs) {
+                    const PUSupport& s = sup[trusted[nb.index]];
+                    ds.push_back(s.normal.dot(sites[i] - s.origin));
+                }
+                std::nth_element(ds.begin(), ds.begin() + ds.size() / 2, ds.end());
+                site_f[i] = ds[ds.size() / 2];
+                if (outer) site_f_pu[i] = std::min(site_f[i], Scalar(-1e-12));
+            }, 1024);
+        }
+        // The sites the triangulation needs (far_site_band): every trusted support, every
+        // untrusted one whose terminal value lies within the band around the zero set, the
+        // outer layer, and one far site per grid cell (the first in the cover's seeded
+        // order, so the choice is deterministic).
+        const std::vector<Index> kept = pu_thinned_sites(sites, ns, site_f, trusted_site,
+                                                         params.labeling == Labeling::graphcut ? params.far_site_band : 0,
+                                                         sup, balls.min, res.thinned_supports);
+        std::vector<Vec3> kept_sites(kept.size());
+        std::vector<Scalar> kept_radii(kept.size());
+        for (std::size_t j = 0; j < kept.size(); ++j) {
+            kept_sites[j] = sites[kept[j]];
+            kept_radii[j] = radii[kept[j]];
+        }
 
         // CGAL's insertion is sequential: what needs only the sites and the data is made
         // on the other threads meanwhile: step 8's inliers and the fit's samples first (their
         // memory is freed before the triangulation's peak, when its tets are listed), then
-        // the terminal values at every site, both in Morton order (2M bench input: this
+        // the PU field at the kept supports, in Morton order (2M bench input: this
         // stage and step 8 took 6.3 + 4.4 s, now 5.7 + 1.5 s; the stage's peak 978 -> 937
         // MB, that of the graph cut 1132 -> 1008 MB with the input's copy freed here;
         // output identical).
-        const std::size_t n_sites = sites.size();
-        std::vector<Scalar> site_f(n_sites), site_f_pu(n_sites);
         RefineSamples fit_samples;
         RefineData fit_data;
         const bool refining = params.refine_spacing > 0 && params.refine_neighbors <= data_pts.size();
@@ -127,61 +183,26 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
                     if (!heap_kept()) release_free_memory();
                 }
                 // The paper's sign (> 0 inside) from here on: f_pu, f, the graph and the labels.
-                // The sites in Morton order (the supports come in the cover's random order):
-                // nearby queries read nearby memory of the field's index and the kd-tree.
-                const std::vector<Index> along = morton_order(sites);
-                std::vector<Scalar> fc(ns);
-                {
-                    std::vector<Index> which;
-                    which.reserve(ns);
-                    for (const Index i : along)
-                        if (i < ns) which.push_back(i);
-                    std::vector<Vec3> xs(which.size());
-                    for (std::size_t j = 0; j < which.size(); ++j) xs[j] = sites[which[j]];
-                    const std::vector<Scalar> v = tfield.values(xs);
-                    for (std::size_t j = 0; j < which.size(); ++j) fc[which[j]] = v[j];
+                std::vector<std::uint8_t> is_kept(ns, 0);
+                for (const Index i : kept)
+                    if (i < ns) is_kept[i] = 1;
+                std::vector<Index> which;
+                which.reserve(kept.size());
+                for (const Index i : along)
+                    if (i < ns && is_kept[i]) which.push_back(i);
+                std::vector<Vec3> xs(which.size());
+                for (std::size_t j = 0; j < which.size(); ++j) xs[j] = sites[which[j]];
+                const std::vector<Scalar> v = tfield.values(xs);
+                for (std::size_t j = 0; j < which.size(); ++j) {
+                    const Index i = which[j];
+                    site_f_pu[i] = std::isnan(v[j]) ? Scalar(0) : -v[j];
+                    if (trusted_site[i]) site_f[i] = site_f_pu[i];
                 }
-                std::vector<Vec3> origins(trusted.size());
-                for (std::size_t j = 0; j < trusted.size(); ++j) origins[j] = sup[trusted[j]].origin;
-                const auto origin_tree = KdTree::adopt(std::move(origins));
-                parallel_for(0, n_sites, [&](std::size_t j) {
-                    const std::size_t i = along[j];
-                    const bool outer = i >= ns;
-                    bool trust = false;
-                    if (!outer) {
-                        site_f_pu[i] = std::isnan(fc[i]) ? Scalar(0) : -fc[i];
-                        trust = trusted_support(sup[i]);
-                    }
-                    if (trust) {
-                        site_f[i] = site_f_pu[i];
-                        return;
-                    }
-                    constexpr std::size_t planes = 7;  // odd: the median is one plane's value
-                    const std::size_t kp = std::min(planes, trusted.size());
-                    // Most untrusted sites lie far from every trusted support, where a plain
-                    // k-nearest search visits much of the tree; the previous query's planes
-                    // (any kp of them bound the kp-th distance; the sites come along the
-                    // Morton curve, so they are near) bound it. The planes found are the same.
-                    thread_local std::vector<Neighbor> nbs;
-                    Scalar bound = std::numeric_limits<Scalar>::max();
-                    if (nbs.size() == kp) {
-                        bound = 0;
-                        for (const auto& nb : nbs)
-                            bound = std::max(bound, (origin_tree.point(nb.index) - sites[i]).squaredNorm());
-                    }
-                    origin_tree.knn_within(sites[i], kp, bound, nbs);
-                    thread_local std::vector<Scalar> ds;
-                    ds.clear();
-                    for (const auto& nb : nbs) {
-                        const PUSupport& s = sup[trusted[nb.index]];
-                        ds.push_back(s.normal.dot(sites[i] - s.origin));
-                    }
-                    std::nth_element(ds.begin(), ds.begin() + ds.size() / 2, ds.end());
-                    site_f[i] = ds[ds.size() / 2];
-                    if (outer) site_f_pu[i] = std::min(site_f[i], Scalar(-1e-12));
-                }, 1024);
             },
-            [&] { tm = regular_tet_mesh(sites, radii, progress, 0.0, 0.95); });
+            [&] {
+                tm = regular_tet_mesh(kept_sites, kept_radii, progress, 0.0, 0.95);
+                for (auto& s : tm.site) s = kept[s];
+            });
         const std::size_t nv = tm.vertices.size();
         // Vertices are numbered by increasing site index, so the surviving supports come
         // first (vertex v < alive_supports is support tm.site[v]) and the outer layer last.
@@ -189,7 +210,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             std::lower_bound(tm.site.begin(), tm.site.end(), ns) - tm.site.begin());
         std::vector<std::uint8_t> is_outer(nv, 0);
         std::fill(is_outer.begin() + static_cast<std::ptrdiff_t>(alive_supports), is_outer.end(), 1);
-        res.hidden_supports = ns - alive_supports;
+        res.hidden_supports = ns - res.thinned_supports - alive_supports;
         res.outer_vertices = nv - alive_supports;
         res.tetrahedra = tm.tets.size();
         res.graph_nodes = nv;
@@ -413,7 +434,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
              {&R::octree_cells, &R::supports, &R::hidden_supports, &R::outer_vertices, &R::tetrahedra,
               &R::graph_nodes, &R::graph_edges, &R::inside_vertices, &R::sign_disagreements, &R::same_sign_vertices,
               &R::smoothed_vertices, &R::removed_regions, &R::filled_vertices, &R::handles_removed,
-              &R::refined_vertices})
+              &R::refined_vertices, &R::thinned_supports})
             res.*count += r.*count;
         res.cut_value += r.cut_value;
         res.refine_noise_ratio = std::max(res.refine_noise_ratio, r.refine_noise_ratio);
