@@ -143,6 +143,12 @@
 // 5.40-5.53 s), 820-905 MB against 12.81, 13.25, 12.78 s (24.2-25.1 s CPU, cover 5.86-6.21 s),
 // 819-877 MB; 10M 58.7 s / 107.6 s CPU, 3581 MB against 68.4 s / 123.9 s CPU, 3578 MB. In a slow
 // phase minutes later: 2M 15.7 s (15.2-15.7 s with kd-tree leaf sizes 32 and 128).
+// 2026-12-05 19:50-20:40 UTC (stop 46; docs/methods/pu_graphcut.md, "far sites thinned out of
+// the triangulation"): far_site_band = 8 (2M: 609,567 -> 266,848 sites; mean 0.008133 %,
+// Hausdorff 0.6373 % against 0.008141 / 0.6322 %). Back to back with stop 45's build in a slow
+// phase: 2M 14.57, 14.35, 13.17 s (24.1-26.3 s CPU), 805-810 MB against 16.99, 16.24, 14.96 s
+// (28.3-29.9 s CPU), 809-952 MB; 11.3-14.6 s over 7 runs. 10M 58.8-69.7 s against 61.4-78.8 s
+// (4 pairs), 3.58 GB both; step 8 is 2-5 s slower there on the same work (the doc's note).
 // 10M points (PU at level 10), 2026-12-03 07:52 UTC, idle VM in a slow phase (the 100K run
 // took 3.16 s wall / 4.30 s CPU then, 182 MB): 177.6 s wall / 249.4 s CPU, peak RSS 7.8 GB
 // (input 588 MB), 1 closed manifold component (genus 0), mean to truth 0.0119 %, Hausdorff

@@ -16,6 +16,7 @@ docs/methods/rbf_octree.md, which keeps the results); for the PU method, bunny00
 were (docs/methods/pu_graphcut.md).
 
 Usage: /usr/bin/python3 bench/compare_rbf_open3d.py KINTSUGI_BINARY [--method rbf|pu-graphcut] [--points 200000]
+       [--seed 1] [--kintsugi-args "--far-site-band 0"]
        [--shapes fertility,armadillo,gargoyle,dc,sharpsphere,block,twelve,bunny00,eight]
 Needs python3-open3d (Debian) and ../shared/data.
 """
@@ -57,12 +58,12 @@ def mean_distance(points, mesh):
     return float(d.mean())
 
 
-def run_kintsugi(binary, pcd, workdir, method):
+def run_kintsugi(binary, pcd, workdir, method, extra=()):
     xyz = os.path.join(workdir, "in.xyz")
     out = os.path.join(workdir, method + ".ply")
     np.savetxt(xyz, np.hstack([np.asarray(pcd.points), np.asarray(pcd.normals)]), fmt="%.9g")
     c0, t0 = children_cpu(), time.perf_counter()
-    res = subprocess.run([binary, "reconstruct", xyz, out, "--method", method, "--json", "-q"],
+    res = subprocess.run([binary, "reconstruct", xyz, out, "--method", method, "--json", "-q", *extra],
                          check=True, capture_output=True, text=True)
     wall, cpu = time.perf_counter() - t0, children_cpu() - c0
     j = json.loads(res.stdout)
@@ -107,6 +108,8 @@ def main():
     ap.add_argument("--points", type=int, default=200000)
     ap.add_argument("--shapes", default="fertility,armadillo,gargoyle,dc", help="comma-separated subset to run")
     ap.add_argument("--method", default="rbf", choices=("rbf", "pu-graphcut"), help="kintsugi's method")
+    ap.add_argument("--seed", type=int, default=1, help="seed of each mesh's sampling (the same points every run)")
+    ap.add_argument("--kintsugi-args", default="", help="extra options for kintsugi reconstruct, space-separated")
     a = ap.parse_args()
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     with open("/proc/loadavg") as f:
@@ -116,6 +119,7 @@ def main():
         def sampled(*path):
             truth = o3d.io.read_triangle_mesh(os.path.join(DATA, *path))
             truth.compute_triangle_normals()
+            o3d.utility.random.seed(a.seed)
             return truth.sample_points_uniformly(a.points, use_triangle_normal=True), truth
 
         shapes = {"fertility": lambda: sampled("libigl", "fertility.off"),
@@ -133,7 +137,7 @@ def main():
             ref_pts = np.asarray(ref.sample_points_uniformly(200000).points) if ref else np.asarray(pcd.points)
             for method in ("kintsugi " + a.method, "Open3D Poisson d10"):
                 if method.startswith("kintsugi"):
-                    mesh, wall, cpu, j = run_kintsugi(a.binary, pcd, tmp, a.method)
+                    mesh, wall, cpu, j = run_kintsugi(a.binary, pcd, tmp, a.method, a.kintsugi_args.split())
                     note = "closed" if j["closed"] else "open"
                 else:
                     got, err = run_open3d(pcd, tmp)

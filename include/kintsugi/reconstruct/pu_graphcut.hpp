@@ -85,7 +85,7 @@ struct PUGraphcutParams {
     /// has more than 0.95; outlier supports far from the data about 1/sqrt(count)).
     Scalar min_support_coherence = 0.8;
     /// Scale s of the weights (s · r_i)² of the step-4 triangulation of the support
-    /// centres. In [0, 1]; default 0 (every support kept, a Delaunay triangulation);
+    /// centres. In [0, 1]; default 0 (no support hidden, a Delaunay triangulation);
     /// the paper's 1 hides the small supports a thin part needs, and the cut then
     /// perforates it (handles).
     Scalar triangulation_weight_scale = 0;
@@ -228,7 +228,7 @@ inline void pu_graphcut_validate(const std::vector<Vec3>& pts, const std::vector
         throw invalid_input(fn + "k = " + std::to_string(p.k) +
                             " must be positive and finite; the paper uses 10 (5-15 work well)");
     check_fraction(fn, "triangulation_weight_scale", p.triangulation_weight_scale,
-                   "; 1 is the paper's regular triangulation, 0 (the default) keeps every support");
+                   "; 1 is the paper's regular triangulation, 0 (the default) hides no support");
     check_fraction(fn, "min_support_coherence", p.min_support_coherence,
                    "; the default is 0.8, 0 trusts any support with enough points");
     check_fraction(fn, "untrusted_weight", p.untrusted_weight, "; the default is 1e-3, 1 is the paper's field");
