@@ -857,11 +857,14 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
     // 0.0001 % in the mean). Sent back to its refined position and the thin-plate fill
     // below instead, the eight had four vertices 1.5-12 % off the truth (not diagnosed).
     const MeshTopology topo(x.size(), faces);
-    {
+    // The vertices selected by `which` that `off(v, centroid, radius)` finds off their ring
+    // (radius: the neighbours' mean distance from their centroid) take the ring's centroid;
+    // found first, then moved, so the result does not depend on the threads.
+    auto to_ring_centroid = [&](const std::vector<std::uint8_t>& which, auto&& off) {
         std::vector<Vec3> to(x.size());
-        std::vector<std::uint8_t> spike(x.size(), 0);
+        std::vector<std::uint8_t> away(x.size(), 0);
         parallel_for(0, x.size(), [&](std::size_t v) {
-            if (!moved[v]) return;
+            if (!which[v]) return;
             const auto ring = topo.vertex_neighbors(static_cast<Index>(v));
             if (ring.size() < 3) return;
             Vec3 c = Vec3::Zero();
@@ -870,12 +873,15 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
             Scalar radius = 0;
             for (const Index w : ring) radius += (x[w] - c).norm();
             radius /= static_cast<Scalar>(ring.size());
-            spike[v] = std::abs(nx[v].dot(x[v] - c)) > 2 * radius;
+            away[v] = off(v, c, radius);
             to[v] = c;
         }, 1024);
         for (Index v = 0; v < x.size(); ++v)
-            if (spike[v]) x[v] = to[v];
-    }
+            if (away[v]) x[v] = to[v];
+    };
+    to_ring_centroid(moved, [&](std::size_t v, const Vec3& c, Scalar radius) {
+        return std::abs(nx[v].dot(x[v] - c)) > 2 * radius;
+    });
     // The vertices left where they were lie on the chords of the coarse surface (new
     // ones) or off the data (coarse ones): they take the thin-plate positions between
     // the projected vertices and the coarse vertices of step 7's fill, which stay (re-
@@ -894,24 +900,9 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
         // 1M points with 10 % outliers and the far sites thinned: one vertex the projection
         // left was put 143 times that distance away by the fill, 1.40 % of the diagonal off
         // the truth; no other vertex of that mesh lies above 8 times, 3-5 above 5.)
-        // (Found first, then moved: the result does not depend on the threads.)
-        std::vector<Vec3> to(x.size());
-        std::vector<std::uint8_t> fold(x.size(), 0);
-        parallel_for(0, x.size(), [&](std::size_t v) {
-            if (!rest[v]) return;
-            const auto ring = topo.vertex_neighbors(static_cast<Index>(v));
-            if (ring.size() < 3) return;
-            Vec3 c = Vec3::Zero();
-            for (const Index w : ring) c += x[w];
-            c /= static_cast<Scalar>(ring.size());
-            Scalar radius = 0;
-            for (const Index w : ring) radius += (x[w] - c).norm();
-            radius /= static_cast<Scalar>(ring.size());
-            fold[v] = (x[v] - c).squaredNorm() > 64 * radius * radius;
-            to[v] = c;
-        }, 1024);
-        for (Index v = 0; v < x.size(); ++v)
-            if (fold[v]) x[v] = to[v];
+        to_ring_centroid(rest, [&](std::size_t v, const Vec3& c, Scalar radius) {
+            return (x[v] - c).squaredNorm() > 64 * radius * radius;
+        });
     }
     // The output has no degenerate triangle (pu_graphcut's guarantee): the corners of a
     // face the moves made collinear (zero_area_triangle, topology_report's test) go back to
