@@ -145,6 +145,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
                 if (outer) site_f_pu[i] = std::min(site_f[i], Scalar(-1e-12));
             }, 1024);
         }
+        progress.check();  // (the terminal values take seconds at 10M points)
         // The sites the triangulation needs (far_site_band): every trusted support, every
         // untrusted one whose terminal value lies within the band around the zero set, the
         // outer layer, and one far site per grid cell (the first in the cover's seeded
