@@ -224,6 +224,8 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
         // Per site, not read again (30 MB at 2M points).
         std::vector<Vec3>().swap(sites);
         std::vector<Scalar>().swap(radii);
+        std::vector<Vec3>().swap(kept_sites);
+        std::vector<Scalar>().swap(kept_radii);
         std::vector<Scalar>().swap(site_f);
         std::vector<Scalar>().swap(site_f_pu);
 

@@ -927,20 +927,14 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
     // should any flat face remain after that, the surface of steps 6-7 is kept. (Before
     // the umbrella step, one such face of the 2M bench input with thinned far sites
     // discarded the whole refinement: mean distance 0.0081 -> 0.0134 %.)
+    std::vector<Index> around;
     auto umbrella = [&](Index v) {
-        const Index h0 = hm.halfedge(v);
-        if (h0 == HalfedgeMesh::invalid) return;
+        if (hm.is_boundary_vertex(v)) return;  // left alone
+        hm.vertex_ring(v, around);
+        if (around.empty()) return;
         Vec3 sum = Vec3::Zero();
-        std::size_t n = 0;
-        Index h = h0;
-        do {
-            sum += hm.position(hm.target(h));
-            ++n;
-            const Index back = hm.twin(HalfedgeMesh::prev(h));
-            if (back == HalfedgeMesh::invalid) return;  // a boundary vertex: left alone
-            h = back;
-        } while (h != h0 && n <= hm.halfedge_capacity());
-        hm.position(v) = sum / static_cast<Scalar>(n);
+        for (const Index w : around) sum += hm.position(w);
+        hm.position(v) = sum / static_cast<Scalar>(around.size());
     };
     for (int round = 0;; ++round) {
         std::size_t bad = 0;
