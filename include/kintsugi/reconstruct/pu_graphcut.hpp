@@ -148,7 +148,7 @@ struct PUGraphcutParams {
     /// whatever its neighbours, so of those only one per grid cell of half that width
     /// becomes a vertex of step 4's triangulation; the rest stay supports of the field.
     /// >= 0, 0 keeps every support (the paper); default 8: the 2M bench input (10 %
-    /// outliers) keeps 267K of 610K sites and runs in 11.3-14.6 s (13.9-17.3 s before) at
+    /// outliers) keeps 267K of 610K sites and runs in 11.1-14.6 s (13.9-17.3 s before) at
     /// the same mean distance; 4 was 0.05 % of the diagonal farther in Hausdorff
     /// (docs/methods/pu_graphcut.md).
     Scalar far_site_band = 8;
