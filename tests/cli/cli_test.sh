@@ -240,6 +240,31 @@ expect 0 "smooth --preset paper" -- "$bin" smooth "$mesh" "$work/sm3.off" --pres
 json_check "smooth: the paper's values, no estimate" "j['parameters']['preset']=='paper' and j['parameters']['a']==2 and j['parameters']['c']==2 and j['parameters']['d']==0.1 and j['parameters']['face_iterations']==2 and j['parameters']['edge_threshold']==0.251 and j['parameters']['normal_iterations']==1 and j['parameters']['lowpass_iterations']==0 and 'noise' not in j and j['parameters']['coplanar_creases'] is False and j['anchored_faces']==0"
 expect 0 "smooth --preset paper --c 1 --face-iterations 1" -- "$bin" smooth "$mesh" "$work/sm4.off" --preset paper --c 1 --face-iterations 1 --json
 json_check "smooth: options given override the preset" "j['parameters']['preset']=='paper' and j['parameters']['c']==1 and j['parameters']['face_iterations']==1 and j['parameters']['d']==0.1"
+# Risk selection: the bunny with seeded Gaussian noise of 0.5|e| in random directions (a smooth
+# shape: Taubin's result kept), the clean bunny (exact planes hold vertices: not compared).
+"$PY" - "$mesh" "$work/noisy_bunny.off" <<'PYEOF'
+import math, random, sys
+tok = open(sys.argv[1]).read().split()
+nv, nf = int(tok[1]), int(tok[2])
+V = [[float(t) for t in tok[4 + 3 * i:7 + 3 * i]] for i in range(nv)]
+F = [[int(t) for t in tok[4 + 3 * nv + 4 * j + 1:4 + 3 * nv + 4 * j + 4]] for j in range(nf)]
+L = sum(math.dist(V[f[a]], V[f[(a + 1) % 3]]) for f in F for a in range(3)) / (3 * nf)
+rng = random.Random(7)
+out = ["OFF", "%d %d 0" % (nv, nf)]
+for p in V:
+    d = [rng.gauss(0, 1) for _ in range(3)]
+    n = math.sqrt(sum(x * x for x in d)) or 1
+    s = rng.gauss(0, 0.5 * L)
+    out.append(" ".join(repr(p[k] + s * d[k] / n) for k in range(3)))
+out += ["3 %d %d %d" % tuple(f) for f in F]
+open(sys.argv[2], "w").write("\n".join(out) + "\n")
+PYEOF
+expect 0 "smooth --risk-selection (noisy bunny)" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_risk.off" --risk-selection --json
+json_check "smooth: risk selection keeps Taubin's result on the noisy bunny" "j['parameters']['risk_selection'] is True and j['risk_selection']['evaluated'] is True and j['risk_selection']['result']=='taubin' and j['risk_selection']['taubin_iterations']>0 and 0<j['risk_selection']['taubin_rms']**2<0.75*j['risk_selection']['filters_rms']**2 and 0<j['risk_selection']['sigma']<=1.1*j['noise']['sigma'] and j['risk_selection']['note']=='' and 'risk: Taubin sweep' in j['timings']"
+expect 0 "smooth --risk-selection (clean bunny)" -- "$bin" smooth "$mesh" "$work/sm_risk2.off" --risk-selection --json
+json_check "smooth: risk selection not compared on the clean bunny (held vertices)" "j['risk_selection']['evaluated'] is False and j['risk_selection']['result']=='filters' and 'held' in j['risk_selection']['note'] and j['held_vertices']>0"
+expect 0 "smooth without --risk-selection" -- "$bin" smooth "$mesh" "$work/sm_norisk.off" --json
+json_check "smooth: no risk selection by default" "j['parameters']['risk_selection'] is False and 'risk_selection' not in j"
 
 # ---- output paths: symbolic links and devices written through, long names
 mkdir -p "$work/real"

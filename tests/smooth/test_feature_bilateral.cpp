@@ -471,6 +471,17 @@ TEST_CASE("cancellation leaves the mesh untouched") {
         CHECK(r.status == ks::Status::cancelled);
         CHECK(m.vertices == noisy.vertices);
     }
+    SUBCASE("progress stays in order when the low-pass runs") {
+        auto m = ss::add_normal_noise(ss::box_mesh(10), 0.08);  // about 0.46|e|: low-pass steps run
+        std::vector<double> fractions;
+        ks::FeatureBilateralParams p;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            fractions.push_back(e.fraction);
+            return true;
+        };
+        CHECK(ks::smooth_feature_bilateral(m, p).lowpass_iterations > 0);
+        CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+    }
     SUBCASE("through a stop token, in the low-pass") {
         const auto strong = ss::add_normal_noise(ss::box_mesh(10), 0.08);  // about 0.46|e|: low-pass steps run
         auto m = strong;
@@ -1162,5 +1173,207 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
             (void)ks::smooth_feature_bilateral(lp_one, {.d = 0.14, .face_iterations = 0, .features = false, .lowpass_iterations = 5});
         }
         CHECK(lp_one.vertices == lp.vertices);
+    }
+}
+
+namespace {
+// Sum over the moved vertices of the squared error along the clean normals, (n·(p − x))².
+double normal_error_sum(const ks::IndexedMesh& m, const ks::IndexedMesh& clean) {
+    const auto n = ks::vertex_normals(clean);
+    const ks::MeshTopology topo(clean.vertices.size(), clean.faces);
+    double s = 0;
+    for (std::size_t v = 0; v < clean.vertices.size(); ++v) {
+        if (topo.vertex_neighbors(static_cast<ks::Index>(v)).empty()) continue;
+        const double h = n[v].dot(m.vertices[v] - clean.vertices[v]);
+        s += h * h;
+    }
+    return s;
+}
+ks::IndexedMesh repo_bunny() { return ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off"); }
+}  // namespace
+
+TEST_CASE("taubin_risk_curves: Stein's estimate follows the true error of every step count") {
+    // The repository's bunny (1,839 vertices) with Gaussian noise of 0.3|e| along the normals:
+    // the estimate at k steps against the true squared error along the normals.
+    const auto clean = repo_bunny();
+    const double L = ks::mean_edge_length(clean);
+    double sigma = 0;
+    const auto noisy = ss::add_gaussian_noise(clean, 0.3 * L, true, 5, &sigma);
+    const ks::MeshTopology topo(clean.vertices.size(), clean.faces);
+    const auto normals = ks::vertex_normals(clean);
+    ks::RunControl control;
+    ks::detail::Progress progress(control);
+    progress.stage("sweep", 0, 1);
+    const auto curves = ks::detail::taubin_risk_curves(noisy.vertices, topo, normals, sigma, 60, {}, progress);
+    REQUIRE(curves.residual.size() >= 31);
+    CHECK(curves.moved == clean.vertices.size());
+    CHECK(curves.trace[0] == doctest::Approx(double(curves.moved)));  // S_0 = I: exact
+    const double m_s2 = double(curves.moved) * sigma * sigma;
+    std::size_t true_best = 0;
+    double true_best_err = 1e300;
+    for (std::size_t k : {0u, 1u, 2u, 4u, 8u, 15u, 30u}) {
+        auto t = noisy;
+        (void)ks::smooth_taubin(t, {}, {.iterations = k});
+        const double truth = normal_error_sum(t, clean);
+        const double estimate = ks::detail::taubin_risk(curves, k, sigma);
+        MESSAGE("k " << k << ": true " << truth / m_s2 << " estimate " << estimate / m_s2 << " (units of m sigma^2)");
+        CHECK(std::abs(estimate - truth) < 0.06 * m_s2);
+        if (truth < true_best_err) true_best_err = truth, true_best = k;
+    }
+    const std::size_t k = ks::detail::least_risk_steps(curves, sigma);
+    auto t = noisy;
+    (void)ks::smooth_taubin(t, {}, {.iterations = k});
+    MESSAGE("least estimated risk at " << k << " steps (true best of those tried " << true_best << ")");
+    CHECK(normal_error_sum(t, clean) < 1.05 * true_best_err);
+}
+
+TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filters' on a box, on every mesh type", T,
+                   ks::IndexedMesh, ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>, ss::SurfaceMesh) {
+    SUBCASE("the bunny, 0.3|e| along the normals: Taubin, at least as good as its best of 10/20/50 steps") {
+        const auto clean = repo_bunny();
+        const double L = ks::mean_edge_length(clean);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.3 * L, true, 5);
+        Holder<T> h(noisy);
+        const auto r = ks::smooth_feature_bilateral(h.mesh(), {.risk_selection = true});
+        REQUIRE(r.status == ks::Status::ok);
+        REQUIRE(r.risk.evaluated);
+        CHECK(r.risk.note.empty());
+        CHECK(r.risk.taubin);
+        CHECK(r.risk.taubin_rms * r.risk.taubin_rms < 0.75 * r.risk.filters_rms * r.risk.filters_rms);  // risks: squares
+        CHECK(r.risk.sigma == doctest::Approx(0.3 * L).epsilon(0.15));
+        const auto out = h.get();
+        // Exactly smooth_taubin's result for that many steps.
+        auto taubin = noisy;
+        (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
+        for (std::size_t v = 0; v < out.vertices.size(); ++v)
+            REQUIRE((out.vertices[v] - taubin.vertices[v]).norm() < 1e-12 * L);
+        auto filters = noisy;
+        (void)ks::smooth_feature_bilateral(filters);
+        double best = 1e9;
+        for (std::size_t it : {10u, 20u, 50u}) {
+            auto t = noisy;
+            (void)ks::smooth_taubin(t, {}, {.iterations = it});
+            best = std::min(best, ks::denoise_metrics(t, clean).mean_normal_angle_deg);
+        }
+        const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+        const double ef = ks::denoise_metrics(filters, clean).mean_normal_angle_deg;
+        MESSAGE("bunny 0.3|e|: selected " << e << " deg (" << r.risk.taubin_iterations << " Taubin steps), filters " << ef
+                                          << ", best Taubin of 10/20/50 " << best << "; estimated rms "
+                                          << r.risk.taubin_rms / L << " vs " << r.risk.filters_rms / L << " |e|");
+        CHECK(e < ef);
+        CHECK(e <= best + 0.05);
+        CHECK(r.timings.back().stage == "risk: Taubin sweep");
+    }
+    SUBCASE("a box, 0.3|e| along the normals: the filters' result, unchanged") {
+        const auto clean = ss::box_mesh(16);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.3 * ks::mean_edge_length(clean), true, 5);
+        Holder<T> h(noisy);
+        const auto r = ks::smooth_feature_bilateral(h.mesh(), {.risk_selection = true});
+        REQUIRE(r.status == ks::Status::ok);
+        CHECK(r.risk.evaluated);
+        CHECK_FALSE(r.risk.taubin);
+        MESSAGE("box 0.3|e|: estimated rms " << r.risk.taubin_rms << " (Taubin, " << r.risk.taubin_iterations
+                                              << " steps) vs " << r.risk.filters_rms << " (filters)");
+        auto reference = noisy;
+        (void)ks::smooth_feature_bilateral(reference);
+        const auto out = h.get();
+        for (std::size_t v = 0; v < out.vertices.size(); ++v)
+            REQUIRE((out.vertices[v] - reference.vertices[v]).norm() < 1e-12);
+    }
+}
+
+TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, cancellation, thread count") {
+    const auto clean = repo_bunny();
+    const double L = ks::mean_edge_length(clean);
+    const auto noisy = ss::add_gaussian_noise(clean, 0.3 * L, true, 5);
+    SUBCASE("impulsive noise on a box (vertices held): the filters' result, and why") {
+        const auto box = ss::add_impulsive_noise(ss::box_mesh(16), 0.5 * ks::mean_edge_length(ss::box_mesh(16)), 3, nullptr, 4);
+        auto a = box, b = box;
+        const auto r = ks::smooth_feature_bilateral(a, {.risk_selection = true});
+        (void)ks::smooth_feature_bilateral(b);
+        CHECK(r.held_vertices > 0);
+        CHECK_FALSE(r.risk.evaluated);
+        CHECK(r.risk.note.find("held") != std::string::npos);
+        CHECK(a.vertices == b.vertices);
+    }
+    SUBCASE("d and face_iterations given (no noise estimate): the filters' result, and why") {
+        auto a = noisy, b = noisy;
+        const auto r = ks::smooth_feature_bilateral(a, {.d = 0.2, .face_iterations = 2, .risk_selection = true});
+        (void)ks::smooth_feature_bilateral(b, {.d = 0.2, .face_iterations = 2});
+        CHECK_FALSE(r.risk.evaluated);
+        CHECK(r.risk.note.find("not estimated") != std::string::npos);
+        CHECK(a.vertices == b.vertices);
+    }
+    SUBCASE("the clean mesh: no further from itself than with the filters alone") {
+        auto a = clean, b = clean;
+        const auto r = ks::smooth_feature_bilateral(a, {.risk_selection = true});
+        REQUIRE(r.status == ks::Status::ok);
+        (void)ks::smooth_feature_bilateral(b);
+        CHECK(ks::denoise_metrics(a, clean).vertex_rms <= ks::denoise_metrics(b, clean).vertex_rms * (1 + 1e-12));
+    }
+    SUBCASE("bad values throw invalid_input and leave the mesh untouched") {
+        for (std::size_t bad : {std::size_t{0}, std::size_t{10001}}) {
+            auto m = noisy;
+            ks::FeatureBilateralParams p;
+            p.risk_selection = true;
+            p.risk_taubin_max_iterations = bad;
+            CHECK_THROWS_WITH_AS((void)ks::smooth_feature_bilateral(m, p),
+                                 doctest::Contains("risk_taubin_max_iterations"), ks::invalid_input);
+            CHECK(m.vertices == noisy.vertices);
+        }
+        auto m = noisy;
+        m.vertices[3].x() = std::numeric_limits<double>::quiet_NaN();
+        const auto before = m.vertices;
+        CHECK_THROWS_AS((void)ks::smooth_feature_bilateral(m, {.risk_selection = true}), ks::invalid_input);
+        CHECK(std::isnan(m.vertices[3].x()));
+        CHECK(m.vertices[0] == before[0]);
+    }
+    SUBCASE("cancelled in each stage: the mesh untouched") {
+        for (const char* stage : {"face smoothing", "risk: perturbed run", "risk: Taubin sweep"}) {
+            auto m = noisy;
+            std::stop_source stop;
+            ks::FeatureBilateralParams p;
+            p.risk_selection = true;
+            p.control.stop = stop.get_token();
+            bool seen = false;
+            std::vector<double> fractions;
+            p.control.progress = [&](const ks::ProgressEvent& e) {
+                fractions.push_back(e.fraction);
+                if (std::string(e.stage) == stage) seen = true, stop.request_stop();
+                return true;
+            };
+            const auto r = ks::smooth_feature_bilateral(m, p);
+            CHECK_MESSAGE(seen, stage);
+            CHECK(r.status == ks::Status::cancelled);
+            CHECK(m.vertices == noisy.vertices);
+            CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+        }
+        auto m = noisy;
+        std::vector<double> fractions;
+        ks::FeatureBilateralParams p;
+        p.risk_selection = true;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            fractions.push_back(e.fraction);
+            return true;
+        };
+        CHECK(ks::smooth_feature_bilateral(m, p).status == ks::Status::ok);
+        CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+        CHECK(fractions.back() == 1.0);
+        CHECK(fractions.size() <= 400);
+    }
+    SUBCASE("the same result with one and two threads") {
+        auto a = noisy, b = noisy;
+        ks::FeatureBilateralResult ra, rb;
+        {
+            ks::ThreadLimit one(1);
+            ra = ks::smooth_feature_bilateral(a, {.risk_selection = true});
+        }
+        {
+            ks::ThreadLimit two(2);
+            rb = ks::smooth_feature_bilateral(b, {.risk_selection = true});
+        }
+        CHECK(ra.risk.taubin_iterations == rb.risk.taubin_iterations);
+        CHECK(ra.risk.filters_rms == rb.risk.filters_rms);
+        CHECK(a.vertices == b.vertices);
     }
 }

@@ -21,6 +21,8 @@
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/mesh/vertex_subset.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -81,6 +83,99 @@ inline std::size_t taubin_smooth(std::vector<Vec3>& positions, const MeshTopolog
         step(params.mu);
     }
     return active.size();
+}
+
+/// What taubin_risk_curves returns: for k = 0, 1, ... λ|μ pairs, the residual along the
+/// normals Σ_v (n_v·(S_k y − y)_v)² and tr S_k, over the `moved` vertices (those with a neighbour).
+struct TaubinRiskCurves {
+    std::vector<Scalar> residual, trace;
+    std::size_t moved = 0;
+};
+
+/// Stein's unbiased risk estimate (Stein 1981) of k pairs for noise of variance σ² along
+/// the normals: E Σ_v (n_v·(S_k y − x)_v)² = residual_k − mσ² + 2σ² tr S_k. It holds for any
+/// zero-mean noise of that variance, since S_k is linear.
+inline Scalar taubin_risk(const TaubinRiskCurves& c, std::size_t k, Scalar sigma) {
+    const Scalar s2 = sigma * sigma;
+    return c.residual[k] - static_cast<Scalar>(c.moved) * s2 + 2 * s2 * c.trace[k];
+}
+
+/// The step count of least taubin_risk for σ (the first of equal ones).
+inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
+    std::size_t best = 0;
+    for (std::size_t k = 1; k < c.residual.size(); ++k)
+        if (taubin_risk(c, k, sigma) < taubin_risk(c, best, sigma)) best = k;
+    return best;
+}
+
+/// Taubin λ|μ pairs 0..max_steps from `y`, every vertex with a neighbour moving (Jacobi
+/// updates, the steps of taubin_smooth), recording the residual along `normals` and tr S_k;
+/// tr S_k by Hutchinson's estimator over two fixed-seed Rademacher vectors smoothed beside the
+/// positions, as many as bring probes × moved vertices to 2^17 (2-16: the estimate's relative
+/// error falls as 1/√(probes·tr S_k), and small meshes' least-risk counts moved by a quarter
+/// with two). Stops at max_steps, or once k exceeds twice the least-risk count for 1.25·σ plus
+/// 30 (the risk has risen past its minimum for any σ near the given one). Deterministic: the
+/// sums are serial.
+inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const MeshTopology& topo,
+                                           const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
+                                           const TaubinParams& params, Progress& progress) {
+    const std::vector<Index> active = movable_vertices(topo, y.size(), {}).vertices;
+    const std::size_t m = active.size();
+    const std::size_t probes = std::clamp<std::size_t>((std::size_t{1} << 17) / std::max<std::size_t>(m, 1), 2, 16);
+    TaubinRiskCurves out;
+    out.moved = m;
+    std::vector<Vec3> x = y, next(m);
+    // Probe values per vertex (probes interleaved); the initial ones kept for the trace.
+    std::vector<Scalar> z(probes * y.size(), 0), nz(probes * m);
+    std::uint64_t state = 0x9E3779B97F4A7C15ull;
+    for (Index v : active)
+        for (std::size_t p = 0; p < probes; ++p) {
+            state = state * 6364136223846793005ull + 1442695040888963407ull;
+            z[probes * v + p] = (state >> 63) ? 1 : -1;
+        }
+    const std::vector<Scalar> z0 = z;
+    auto record = [&] {
+        Scalar res = 0, tr = 0;
+        for (Index v : active) {
+            const Scalar h = normals[v].dot(x[v] - y[v]);
+            res += h * h;
+            for (std::size_t p = 0; p < probes; ++p) tr += z0[probes * v + p] * z[probes * v + p];
+        }
+        out.residual.push_back(res);
+        out.trace.push_back(tr / static_cast<Scalar>(probes));
+    };
+    auto step = [&](Scalar f) {
+        parallel_for(0, m, [&](std::size_t i) {
+            const Index v = active[i];
+            const auto nb = topo.vertex_neighbors(v);
+            Vec3 mean = Vec3::Zero();
+            std::array<Scalar, 16> mz{};
+            for (Index u : nb) {
+                mean += x[u];
+                for (std::size_t p = 0; p < probes; ++p) mz[p] += z[probes * u + p];
+            }
+            const Scalar w = Scalar(1) / static_cast<Scalar>(nb.size());
+            next[i] = x[v] + f * (mean * w - x[v]);
+            for (std::size_t p = 0; p < probes; ++p)
+                nz[probes * i + p] = z[probes * v + p] + f * (mz[p] * w - z[probes * v + p]);
+        }, 1024);
+        for (std::size_t i = 0; i < m; ++i) {
+            x[active[i]] = next[i];
+            for (std::size_t p = 0; p < probes; ++p) z[probes * active[i] + p] = nz[probes * i + p];
+        }
+    };
+    record();
+    if (m == 0) return out;
+    std::size_t best = 0;
+    for (std::size_t k = 1; k <= max_steps; ++k) {
+        progress.update(static_cast<double>(k) / static_cast<double>(max_steps));
+        step(params.lambda);
+        step(params.mu);
+        record();
+        if (taubin_risk(out, k, 1.25 * sigma) < taubin_risk(out, best, 1.25 * sigma)) best = k;
+        if (k > 2 * best + 30) break;
+    }
+    return out;
 }
 
 inline void taubin_validate(const TaubinParams& p, std::size_t nv, const std::vector<std::uint8_t>& movable) {
