@@ -178,7 +178,8 @@ void BM_memory(benchmark::State& state) {
 }
 BENCHMARK(BM_memory)->Arg(2)->Arg(3)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
-// Args: subdivision levels; 0 = features off, 1 = defaults, 2 = defaults on the impulsive input.
+// Args: subdivision levels; 0 = features off, 1 = defaults, 2 = defaults on the impulsive input,
+// 3 = defaults with risk_selection (the filters twice and the Taubin sweep).
 void BM_feature_bilateral(benchmark::State& state) {
     const auto& input = big_mesh(static_cast<int>(state.range(0)), state.range(1) == 2);
     ks::FeatureBilateralResult r;
@@ -188,17 +189,21 @@ void BM_feature_bilateral(benchmark::State& state) {
         ks::IndexedMesh m = input;
         state.ResumeTiming();
         const double c0 = process_cpu_s();
-        r = ks::smooth_feature_bilateral(m, {.features = state.range(1) != 0});
+        r = ks::smooth_feature_bilateral(m, {.features = state.range(1) != 0, .risk_selection = state.range(1) == 3});
         cpu = process_cpu_s() - c0;
         benchmark::DoNotOptimize(m.vertices.data());
     }
     state.counters["faces"] = static_cast<double>(input.faces.size());
     state.counters["sharp_edges"] = static_cast<double>(r.features.sharp_edges.size());
     state.counters["anchored_faces"] = static_cast<double>(r.features.anchored_faces);
+    if (state.range(1) == 3) {
+        state.counters["risk_taubin_kept"] = r.risk.taubin ? 1 : 0;
+        state.counters["risk_taubin_steps"] = static_cast<double>(r.risk.taubin_iterations);
+    }
     state.counters["cpu_s(all threads)"] = cpu;
     for (const auto& t : r.timings) state.counters[t.stage + " s"] = t.seconds;
 }
-BENCHMARK(BM_feature_bilateral)->Args({3, 1})->Args({3, 0})->Args({3, 2})->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK(BM_feature_bilateral)->Args({3, 1})->Args({3, 0})->Args({3, 2})->Args({3, 3})->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 void BM_taubin(benchmark::State& state) {
     const auto& input = big_mesh(3);
@@ -264,7 +269,8 @@ void accuracy_table() {
 // (lowpass_noise = 0), of the fixed defaults before both (d = 0.14, 3 face iterations), of the paper's
 // published parameters and detection (FeatureBilateralParams::paper()), and of the best
 // Taubin (10/20/50 iterations, by normal error) and of CGAL's smooth_shape
-// (ss::best_smooth_shape); the estimated noise against the true
+// (ss::best_smooth_shape), and of the defaults with risk_selection (T: Taubin's result kept, with
+// its step count; F: the filters'; -: not compared); the estimated noise against the true
 // (rms of the displacements along the normals), both in clean |e|. The last three shapes
 // (CGAL's mech-holes-shark, armadillo, bunny00) were never used to choose a default; the
 // Stanford bunny (bun_zipper.ply, 69K faces, 5 open holes) and CGAL's elephant-with-holes
@@ -285,8 +291,8 @@ void BM_noise_table(benchmark::State& state) {
         {"elephant (h.o.)", shared / "cgal" / "meshes" / "elephant-with-holes.off"}};
     for (auto _ : state) {
         std::printf("\nnoise table: normal error (deg) / vertex RMS (|e|); sigma estimated / true (|e|)\n");
-        std::printf("%-17s %-6s %15s %15s %15s %15s %19s %24s %13s\n", "shape", "noise", "defaults", "low-pass off",
-                    "d 0.14, 3 it.", "paper", "best Taubin", "best smooth_shape", "sigma est/true");
+        std::printf("%-17s %-6s %15s %15s %15s %15s %19s %24s %22s %13s\n", "shape", "noise", "defaults", "low-pass off",
+                    "d 0.14, 3 it.", "paper", "best Taubin", "best smooth_shape", "risk selection", "sigma est/true");
         for (const auto& [name, path] : shapes) {
             if (!fs::exists(path)) {
                 std::printf("%-17s skipped: %s not found\n", name, path.string().c_str());
@@ -305,8 +311,9 @@ void BM_noise_table(benchmark::State& state) {
                     std::snprintf(buf, sizeof buf, "%6.2f / %.3f", d.mean_normal_angle_deg, d.vertex_rms / L);
                     return std::string(buf);
                 };
-                auto ours = noisy, off = noisy, fixed = noisy, paper = noisy;
+                auto ours = noisy, off = noisy, fixed = noisy, paper = noisy, selected = noisy;
                 const auto r = ks::smooth_feature_bilateral(ours);
+                const auto rs = ks::smooth_feature_bilateral(selected, {.risk_selection = true});
                 (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0});
                 (void)ks::smooth_feature_bilateral(fixed, {.d = 0.14, .face_iterations = 3});
                 (void)ks::smooth_feature_bilateral(paper, ks::FeatureBilateralParams::paper());
@@ -321,14 +328,16 @@ void BM_noise_table(benchmark::State& state) {
                 }
                 std::string ss_setting;
                 const auto shape = ss::best_smooth_shape(noisy, clean, &ss_setting);
-                char label[16], taubin[48], cgal[64];
+                char label[16], taubin[48], cgal[64], risk[64];
+                if (rs.risk.taubin) std::snprintf(risk, sizeof risk, "%s (T %zu)", cell(selected).c_str(), rs.risk.taubin_iterations);
+                else std::snprintf(risk, sizeof risk, "%s (%s)", cell(selected).c_str(), rs.risk.evaluated ? "F" : "-");
                 if (k > 0) std::snprintf(label, sizeof label, "%.1f", k);
                 else std::snprintf(label, sizeof label, "impuls");
                 std::snprintf(taubin, sizeof taubin, "%s (%d)", cell(best).c_str(), bit);
                 std::snprintf(cgal, sizeof cgal, "%s (%s)", cell(shape).c_str(), ss_setting.c_str());
-                std::printf("%-17s %-6s %15s %15s %15s %15s %19s %24s %6.3f/%.3f   low-pass %zu, d %.3f, %zu it.\n", name,
+                std::printf("%-17s %-6s %15s %15s %15s %15s %19s %24s %22s %6.3f/%.3f   low-pass %zu, d %.3f, %zu it.\n", name,
                             label, cell(ours).c_str(), cell(off).c_str(), cell(fixed).c_str(), cell(paper).c_str(), taubin,
-                            cgal, r.noise.sigma / L, truth / L, r.lowpass_iterations, r.d, r.face_iterations);
+                            cgal, risk, r.noise.sigma / L, truth / L, r.lowpass_iterations, r.d, r.face_iterations);
                 std::fflush(stdout);
             }
         }
