@@ -53,6 +53,10 @@
 //   against 7.0-7.2 s CPU; two face iterations of six passes instead of three of ten).
 //   Block0.4 4.46/0.139. Noise table with nine shapes (bun_zipper and elephant added after the
 //   face-iteration rule): 313-397 s wall (README).
+// 2026-12-05, stop 47 (risk selection, opt-in): BM_feature_bilateral/3/3 6.05 / 6.47 s wall against
+//   3.89 / 4.21 s for the defaults, back to back (perturbed run 1.1-1.4 s, Taubin sweep 2.0-2.2 s;
+//   the filters kept, 39 Taubin pairs of least risk); the first version (detection rerun, serial
+//   buffer copies in the sweep) 9.2-10.8 s. Noise table with the risk-selection column: 454-471 s.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

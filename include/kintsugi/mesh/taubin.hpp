@@ -109,24 +109,25 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 }
 
 /// Taubin λ|μ pairs 0..max_steps from `y`, every vertex with a neighbour moving (Jacobi
-/// updates, the steps of taubin_smooth), recording the residual along `normals` and tr S_k;
-/// tr S_k by Hutchinson's estimator over two fixed-seed Rademacher vectors smoothed beside the
-/// positions, as many as bring probes × moved vertices to 2^17 (2-16: the estimate's relative
-/// error falls as 1/√(probes·tr S_k), and small meshes' least-risk counts moved by a quarter
-/// with two). Stops at max_steps, or once k exceeds twice the least-risk count for 1.25·σ plus
-/// 30 (the risk has risen past its minimum for any σ near the given one). Deterministic: the
-/// sums are serial.
-inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const MeshTopology& topo,
-                                           const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
-                                           const TaubinParams& params, Progress& progress) {
-    const std::vector<Index> active = movable_vertices(topo, y.size(), {}).vertices;
+/// updates, the steps of taubin_smooth), recording the residual along `normals` and tr S_k.
+/// tr S_k: Hutchinson's estimator over fixed-seed Rademacher vectors smoothed beside the
+/// positions, the power of two from 2 to 16 that brings probes × moved vertices to 2^17 or more
+/// (the estimate's relative error falls as 1/√(probes·tr S_k); with two, small meshes' least-risk
+/// counts moved by a quarter). Stops at max_steps, or once k exceeds twice the least-risk count
+/// for 1.25·σ plus 30 (the risk has risen past its minimum for any σ near the given one).
+/// Deterministic: the sums are folded in fixed chunks (parallel_reduce).
+template <std::size_t probes>
+TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshTopology& topo,
+                                         const std::vector<Index>& active, const std::vector<Vec3>& normals,
+                                         Scalar sigma, std::size_t max_steps, const TaubinParams& params,
+                                         Progress& progress) {
     const std::size_t m = active.size();
-    const std::size_t probes = std::clamp<std::size_t>((std::size_t{1} << 17) / std::max<std::size_t>(m, 1), 2, 16);
     TaubinRiskCurves out;
     out.moved = m;
-    std::vector<Vec3> x = y, next(m);
-    // Probe values per vertex (probes interleaved); the initial ones kept for the trace.
-    std::vector<Scalar> z(probes * y.size(), 0), nz(probes * m);
+    // Positions and probe values (probes interleaved per vertex), double-buffered: each half
+    // step reads one buffer and writes the other (vertices that do not move hold y and 0 in both).
+    std::vector<Vec3> x = y, nx = y;
+    std::vector<Scalar> z(probes * y.size(), 0);
     std::uint64_t state = 0x9E3779B97F4A7C15ull;
     for (Index v : active)
         for (std::size_t p = 0; p < probes; ++p) {
@@ -134,35 +135,42 @@ inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const Mes
             z[probes * v + p] = (state >> 63) ? 1 : -1;
         }
     const std::vector<Scalar> z0 = z;
+    std::vector<Scalar> nz = z;
     auto record = [&] {
-        Scalar res = 0, tr = 0;
-        for (Index v : active) {
-            const Scalar h = normals[v].dot(x[v] - y[v]);
-            res += h * h;
-            for (std::size_t p = 0; p < probes; ++p) tr += z0[probes * v + p] * z[probes * v + p];
-        }
-        out.residual.push_back(res);
-        out.trace.push_back(tr / static_cast<Scalar>(probes));
+        // Fixed chunks folded in order: the same sums whatever the thread count.
+        using Sums = std::array<Scalar, 2>;
+        const Sums sums = parallel_reduce(
+            0, m, Sums{0, 0},
+            [&](std::size_t first, std::size_t last, Sums acc) {
+                for (std::size_t i = first; i < last; ++i) {
+                    const Index v = active[i];
+                    const Scalar h = normals[v].dot(x[v] - y[v]);
+                    acc[0] += h * h;
+                    for (std::size_t p = 0; p < probes; ++p) acc[1] += z0[probes * v + p] * z[probes * v + p];
+                }
+                return acc;
+            },
+            [](Sums a, Sums b) { return Sums{a[0] + b[0], a[1] + b[1]}; });
+        out.residual.push_back(sums[0]);
+        out.trace.push_back(sums[1] / static_cast<Scalar>(probes));
     };
     auto step = [&](Scalar f) {
         parallel_for(0, m, [&](std::size_t i) {
             const Index v = active[i];
             const auto nb = topo.vertex_neighbors(v);
             Vec3 mean = Vec3::Zero();
-            std::array<Scalar, 16> mz{};
+            std::array<Scalar, probes> mz{};
             for (Index u : nb) {
                 mean += x[u];
                 for (std::size_t p = 0; p < probes; ++p) mz[p] += z[probes * u + p];
             }
             const Scalar w = Scalar(1) / static_cast<Scalar>(nb.size());
-            next[i] = x[v] + f * (mean * w - x[v]);
+            nx[v] = x[v] + f * (mean / static_cast<Scalar>(nb.size()) - x[v]);  // umbrella()'s arithmetic
             for (std::size_t p = 0; p < probes; ++p)
-                nz[probes * i + p] = z[probes * v + p] + f * (mz[p] * w - z[probes * v + p]);
+                nz[probes * v + p] = z[probes * v + p] + f * (mz[p] * w - z[probes * v + p]);
         }, 1024);
-        for (std::size_t i = 0; i < m; ++i) {
-            x[active[i]] = next[i];
-            for (std::size_t p = 0; p < probes; ++p) z[probes * active[i] + p] = nz[probes * i + p];
-        }
+        x.swap(nx);
+        z.swap(nz);
     };
     record();
     if (m == 0) return out;
@@ -176,6 +184,17 @@ inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const Mes
         if (k > 2 * best + 30) break;
     }
     return out;
+}
+
+inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const MeshTopology& topo,
+                                           const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
+                                           const TaubinParams& params, Progress& progress) {
+    const std::vector<Index> active = movable_vertices(topo, y.size(), {}).vertices;
+    const std::size_t want = (std::size_t{1} << 17) / std::max<std::size_t>(active.size(), 1);
+    if (want <= 2) return taubin_risk_curves_with<2>(y, topo, active, normals, sigma, max_steps, params, progress);
+    if (want <= 4) return taubin_risk_curves_with<4>(y, topo, active, normals, sigma, max_steps, params, progress);
+    if (want <= 8) return taubin_risk_curves_with<8>(y, topo, active, normals, sigma, max_steps, params, progress);
+    return taubin_risk_curves_with<16>(y, topo, active, normals, sigma, max_steps, params, progress);
 }
 
 inline void taubin_validate(const TaubinParams& p, std::size_t nv, const std::vector<std::uint8_t>& movable) {

@@ -171,11 +171,12 @@
 /// estimate (Stein 1981; mesh/taubin.hpp, taubin_risk_sweep); the filters' risk is the same
 /// estimate with their divergence measured by Monte-Carlo SURE (S. Ramani, T. Blu, M. Unser,
 /// "Monte-Carlo SURE: a black-box optimization of regularization parameters for general
-/// denoising algorithms", IEEE TIP 2008): one more run, with the values chosen by the first,
+/// denoising algorithms", IEEE TIP 2008): one more run, with the values and sharp edges of the first,
 /// on the input moved by ±0.1σ along the result's normals. Both estimates assume Gaussian-like
 /// noise of the estimated σ: the selection is skipped when vertices are held (impulsive noise)
 /// and when the Taubin residual disagrees with σ by more than 10 %. The cost is a second run of
-/// the filters and up to 200 Taubin steps (about 2.5× the time), hence off by default.
+/// the filters without the detection and up to 200 Taubin steps (1.5-1.8× the time on 590K
+/// faces), hence off by default.
 /// Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
 /// ## Neighbourhoods and cost
@@ -298,11 +299,11 @@ struct FeatureBilateralParams {
     /// 0 disables the automatic low-pass. Default 0.2: clean meshes read 0–0.15, and the
     /// filters below are at their best from about there (docs/methods/feature_bilateral.md).
     Scalar lowpass_noise = 0.2;
-    /// Also run Taubin smoothing (taubin_risk_sweep, at most `risk_taubin_max_iterations`
-    /// pairs) and return whichever of the two results has the lower estimated error along the
-    /// normals ("Risk selection" above). Default false: it costs a second run of the filters
-    /// and the Taubin sweep, about 2.5× the time; true on smooth organic shapes, where Taubin
-    /// wins (fertility at 0.3|e|: 8.9° → 5.6°).
+    /// Also run Taubin smoothing (detail::taubin_risk_curves, at most
+    /// `risk_taubin_max_iterations` pairs) and return its result when its estimated error along
+    /// the normals is below 0.75 times the filters' ("Risk selection" above). Default false: it
+    /// costs a second run of the filters and the Taubin sweep, 1.5-1.8× the time; true pays on
+    /// smooth organic shapes, where Taubin wins (fertility at 0.3|e|: 8.9° → 5.7°).
     bool risk_selection = false;
     /// Most Taubin λ|μ pairs the risk selection tries. Range 1–10000; default 200 (the best
     /// counts measured were 2-120; the sweep stops earlier once the risk rises).
@@ -730,6 +731,26 @@ template <TriangleMesh M>
 namespace detail::fbs {
 template <MutableTriangleMesh M>
 FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& params);
+
+/// The sharp edges `given` (input vertex indices) in the internal vertex order, in place of a
+/// detection (select_by_risk's perturbed run: the features of the first run).
+inline FeatureData given_features(const std::vector<std::array<Index, 2>>& given, const std::vector<Index>& order) {
+    FeatureData fd;
+    fd.sharp_edges.reserve(given.size());
+    for (const auto& e : given) {
+        std::array<Index, 2> f{order[e[0]], order[e[1]]};
+        if (f[0] > f[1]) std::swap(f[0], f[1]);
+        fd.sharp_edges.push_back(f);
+    }
+    std::sort(fd.sharp_edges.begin(), fd.sharp_edges.end());
+    return fd;
+}
+
+/// smooth_feature_bilateral without the risk selection; with `given_edges`, those sharp edges
+/// (input indices) instead of the coplanar stage and the detection.
+template <MutableTriangleMesh M>
+FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
+                                  const std::vector<std::array<Index, 2>>* given_edges);
 }  // namespace detail::fbs
 
 /// @throws invalid_input on an empty mesh, NaN/Inf coordinates, a face index out of
@@ -746,6 +767,16 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             throw invalid_input(std::string(fn) + ": risk_taubin_max_iterations = 0; pass at least 1");
         return fbs::select_by_risk(mesh, params);
     }
+    return fbs::smooth_run(mesh, params, nullptr);
+}
+
+namespace detail::fbs {
+
+template <MutableTriangleMesh M>
+FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
+                                  const std::vector<std::array<Index, 2>>* given_edges) {
+    constexpr const char* fn = "kintsugi::smooth_feature_bilateral";
+    namespace fbs = detail::fbs;
     SharpFeatureParams detection = params.detection;
     fbs::check_positive(fn, "a", params.a);
     fbs::check_positive(fn, "b", params.b);
@@ -783,8 +814,9 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         const std::vector<unsigned char> has_face = fbs::used_vertices(m);
         std::vector<unsigned char> fixed(nv, 0);
         // On the input, before the low-pass moves the vertices impulsive noise left in place.
-        const auto coplanar = params.features ? fbs::run_coplanar(m, topo, L, detection, progress, 0.02, 0.03)
-                                              : std::nullopt;
+        const auto coplanar = params.features && !given_edges
+                                  ? fbs::run_coplanar(m, topo, L, detection, progress, 0.02, 0.03)
+                                  : std::nullopt;
         // The corners of anchored faces were not moved by the noise: held where they are.
         const std::vector<unsigned char>* hold =
             params.hold_unmoved && coplanar && !coplanar->unmoved.empty() ? &coplanar->unmoved : nullptr;
@@ -840,8 +872,9 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         std::vector<Index> final_vertices;
         if (params.features) {
             progress.stage("features", 0.1, 0.45);
-            auto fd = fbs::run_detection(m, topo, L, has_face, detection, progress, ws,
-                                         coplanar ? &*coplanar : nullptr);
+            auto fd = given_edges ? fbs::given_features(*given_edges, so.order)
+                                  : fbs::run_detection(m, topo, L, has_face, detection, progress, ws,
+                                                       coplanar ? &*coplanar : nullptr);
             std::vector<unsigned char> on_edge(nv, 0);
             for (const auto& e : fd.sharp_edges) on_edge[e[0]] = on_edge[e[1]] = 1;
             std::vector<Index> edge_vertices;
@@ -870,6 +903,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             }
             result.features = fbs::to_public(std::move(fd), so.frame.to_world(L));
             fbs::restore_order(result.features, so.order);
+            if (given_edges) result.features.sharp_edges = *given_edges;  // no strengths to reorder with
         }
         progress.stage("face smoothing", params.features ? 0.5 : 0.1, final_edges.empty() ? 1.0 : 0.98);
         for (std::size_t it = 0; it < face_iterations; ++it) {
@@ -897,8 +931,6 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         kintsugi::set_vertex_position(mesh, v, so.frame.to_world(m.vertices[so.order[v]]));
     return result;
 }
-
-namespace detail::fbs {
 
 /// Taubin's result is returned when its estimated risk is below this fraction of the
 /// filters' (see select_by_risk).
@@ -951,8 +983,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
         const std::vector<Vec3> normals = kintsugi::vertex_normals(local_f);
         const MeshTopology topo(y.size(), input.faces);
 
-        // The filters' divergence along the normals: one run, with the values the first chose,
-        // on the input moved by eps·σ·z_v along n_v (z_v = ±1, fixed seed).
+        // The filters' divergence along the normals: one run, with the values and the sharp edges
+        // the first chose, on the input moved by eps·σ·z_v along n_v (z_v = ±1, fixed seed).
         constexpr Scalar eps = 0.1;
         FeatureBilateralParams fixed = inner;
         fixed.d = result.d;
@@ -975,7 +1007,9 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             perturbed.vertices[v] += eps * sigma * z[v] * normals[v];
         }
         frame.to_world(perturbed.vertices);
-        const FeatureBilateralResult second = smooth_feature_bilateral(perturbed, fixed);
+        // The first run's sharp edges, not a new detection: the divergence is the derivative,
+        // which the detection's discrete choices do not have (a flipped edge would count as one).
+        const FeatureBilateralResult second = smooth_run(perturbed, fixed, &result.features.sharp_edges);
         if (second.status == Status::cancelled) throw cancelled_exception{};
         frame.to_local(perturbed.vertices);
         Scalar residual = 0, divergence = 0;
