@@ -133,6 +133,23 @@ template <class Result>
     return r;
 }
 
+/// Forwards a part's progress into [a, b] of the whole run, at most once per 1 % of
+/// the run (`last`: the last fraction forwarded, shared by the parts); the parts' own
+/// "done" is dropped (the caller reports the whole run's). `outer` and `last` must
+/// outlive the returned control.
+inline RunControl part_control(const RunControl& outer, double a, double b, double& last) {
+    RunControl c;
+    c.stop = outer.stop;
+    if (outer.progress)
+        c.progress = [&outer, a, b, &last](const ProgressEvent& e) {
+            const double f = a + (b - a) * e.fraction;
+            if (e.stage == "done" || f < last + 0.01) return true;
+            last = f;
+            return outer.progress(ProgressEvent{e.stage, f});
+        };
+    return c;
+}
+
 /// Runs `body(progress)`, `progress` reporting to `control`, and returns its result; when the
 /// run is cancelled inside (cancelled_exception), returns `Result{}` with status cancelled.
 /// The one place where an algorithm's cancellation becomes its Status.

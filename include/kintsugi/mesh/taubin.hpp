@@ -86,9 +86,10 @@ inline std::size_t taubin_smooth(std::vector<Vec3>& positions, const MeshTopolog
 }
 
 /// What taubin_risk_curves returns: for k = 0, 1, ... λ|μ pairs, the residual along the
-/// normals Σ_v (n_v·(S_k y − y)_v)² and tr S_k, over the `moved` vertices (those with a neighbour).
+/// normals Σ_v (n_v·(S_k y − y)_v)², tr S_k and tr S_kᵀS_k, over the `moved` vertices (those
+/// with a neighbour and a non-zero normal; S_k restricted to them).
 struct TaubinRiskCurves {
-    std::vector<Scalar> residual, trace;
+    std::vector<Scalar> residual, trace, trace_sq;
     std::size_t moved = 0;
 };
 
@@ -109,8 +110,9 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 }
 
 /// Taubin λ|μ pairs 0..max_steps from `y`, every vertex with a neighbour moving (Jacobi
-/// updates, the steps of taubin_smooth), recording the residual along `normals` and tr S_k.
-/// tr S_k: Hutchinson's estimator over fixed-seed Rademacher vectors smoothed beside the
+/// updates, the steps of taubin_smooth), recording over the vertices with a non-zero normal
+/// the residual along `normals`, tr S_k and tr S_kᵀS_k. The traces: Hutchinson's estimator
+/// (E zᵀS_k z and E |S_k z|²) over fixed-seed Rademacher vectors smoothed beside the
 /// positions, the power of two from 2 to 16 that brings probes × moved vertices to 2^17 or more
 /// (the estimate's relative error falls as 1/√(probes·tr S_k); with two, small meshes' least-risk
 /// counts moved by a quarter). Stops at max_steps, or once k exceeds twice the least-risk count
@@ -118,18 +120,18 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 /// Deterministic: the sums are folded in fixed chunks (parallel_reduce).
 template <std::size_t probes>
 TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshTopology& topo,
-                                         const std::vector<Index>& active, const std::vector<Vec3>& normals,
-                                         Scalar sigma, std::size_t max_steps, const TaubinParams& params,
-                                         Progress& progress) {
+                                         const std::vector<Index>& active, const std::vector<Index>& counted,
+                                         const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
+                                         const TaubinParams& params, Progress& progress) {
     const std::size_t m = active.size();
     TaubinRiskCurves out;
-    out.moved = m;
+    out.moved = counted.size();
     // Positions and probe values (probes interleaved per vertex), double-buffered: each half
     // step reads one buffer and writes the other (vertices that do not move hold y and 0 in both).
     std::vector<Vec3> x = y, nx = y;
     std::vector<Scalar> z(probes * y.size(), 0);
     std::uint64_t state = 0x9E3779B97F4A7C15ull;
-    for (Index v : active)
+    for (Index v : counted)
         for (std::size_t p = 0; p < probes; ++p) {
             state = state * 6364136223846793005ull + 1442695040888963407ull;
             z[probes * v + p] = (state >> 63) ? 1 : -1;
@@ -138,21 +140,25 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
     std::vector<Scalar> nz = z;
     auto record = [&] {
         // Fixed chunks folded in order: the same sums whatever the thread count.
-        using Sums = std::array<Scalar, 2>;
+        using Sums = std::array<Scalar, 3>;
         const Sums sums = parallel_reduce(
-            0, m, Sums{0, 0},
+            0, counted.size(), Sums{0, 0, 0},
             [&](std::size_t first, std::size_t last, Sums acc) {
                 for (std::size_t i = first; i < last; ++i) {
-                    const Index v = active[i];
+                    const Index v = counted[i];
                     const Scalar h = normals[v].dot(x[v] - y[v]);
                     acc[0] += h * h;
-                    for (std::size_t p = 0; p < probes; ++p) acc[1] += z0[probes * v + p] * z[probes * v + p];
+                    for (std::size_t p = 0; p < probes; ++p) {
+                        acc[1] += z0[probes * v + p] * z[probes * v + p];
+                        acc[2] += z[probes * v + p] * z[probes * v + p];
+                    }
                 }
                 return acc;
             },
-            [](Sums a, Sums b) { return Sums{a[0] + b[0], a[1] + b[1]}; });
+            [](Sums a, Sums b) { return Sums{a[0] + b[0], a[1] + b[1], a[2] + b[2]}; });
         out.residual.push_back(sums[0]);
         out.trace.push_back(sums[1] / static_cast<Scalar>(probes));
+        out.trace_sq.push_back(sums[2] / static_cast<Scalar>(probes));
     };
     auto step = [&](Scalar f) {
         parallel_for(0, m, [&](std::size_t i) {
@@ -173,7 +179,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
         z.swap(nz);
     };
     record();
-    if (m == 0) return out;
+    if (m == 0 || counted.empty()) return out;
     std::size_t best = 0;
     for (std::size_t k = 1; k <= max_steps; ++k) {
         progress.update(static_cast<double>(k) / static_cast<double>(max_steps));
@@ -190,11 +196,18 @@ inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const Mes
                                            const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
                                            const TaubinParams& params, Progress& progress) {
     const std::vector<Index> active = movable_vertices(topo, y.size(), {}).vertices;
-    const std::size_t want = (std::size_t{1} << 17) / std::max<std::size_t>(active.size(), 1);
-    if (want <= 2) return taubin_risk_curves_with<2>(y, topo, active, normals, sigma, max_steps, params, progress);
-    if (want <= 4) return taubin_risk_curves_with<4>(y, topo, active, normals, sigma, max_steps, params, progress);
-    if (want <= 8) return taubin_risk_curves_with<8>(y, topo, active, normals, sigma, max_steps, params, progress);
-    return taubin_risk_curves_with<16>(y, topo, active, normals, sigma, max_steps, params, progress);
+    std::vector<Index> counted;
+    for (Index v : active)
+        if (normals[v].squaredNorm() > 0) counted.push_back(v);
+    const std::size_t n = std::max<std::size_t>(counted.size(), 1);
+    const std::size_t want = ((std::size_t{1} << 17) + n - 1) / n;  // rounded up
+    auto run = [&]<std::size_t P>() {
+        return taubin_risk_curves_with<P>(y, topo, active, counted, normals, sigma, max_steps, params, progress);
+    };
+    if (want <= 2) return run.template operator()<2>();
+    if (want <= 4) return run.template operator()<4>();
+    if (want <= 8) return run.template operator()<8>();
+    return run.template operator()<16>();
 }
 
 inline void taubin_validate(const TaubinParams& p, std::size_t nv, const std::vector<std::uint8_t>& movable) {

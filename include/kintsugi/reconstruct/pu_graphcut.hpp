@@ -269,21 +269,6 @@ inline std::string pu_graphcut_validate_part(const std::vector<Vec3>& pts, const
     return {};
 }
 
-/// Forwards a part's progress into [a, b] of the whole run, at most once per 1 % of
-/// the run (`last`: the last fraction forwarded); the parts' own "done" is dropped.
-inline RunControl part_control(const RunControl& outer, double a, double b, double& last) {
-    RunControl c;
-    c.stop = outer.stop;
-    if (outer.progress)
-        c.progress = [&outer, a, b, &last](const ProgressEvent& e) {
-            const double f = a + (b - a) * e.fraction;
-            if (e.stage == "done" || f < last + 0.01) return true;
-            last = f;
-            return outer.progress(ProgressEvent{e.stage, f});
-        };
-    return c;
-}
-
 /// Steps 1-7 on one part (validated, in its frame). Defined in
 /// detail/pu_graphcut_run.ipp (kintsugi/core/stages.hpp).
 KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vector<Vec3> nrm,
