@@ -1055,7 +1055,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             result.risk.taubin_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_taubin) / ms));
             if (!(s <= 1.1 * sigma)) {
                 skip("the Taubin residual implies a noise of " + std::to_string(s / sigma) +
-                     " times the estimate (heavy-tailed noise; the estimates assume Gaussian-like noise)");
+                     " times the estimate (heavy-tailed noise, or shape Taubin removes; the estimates "
+                     "assume Gaussian-like noise)");
             } else {
                 result.risk.evaluated = true;
                 // Taubin only when its risk is clearly lower: position error favours it on faceted
