@@ -93,12 +93,18 @@ struct TaubinRiskCurves {
     std::size_t moved = 0;
 };
 
-/// Stein's unbiased risk estimate (Stein 1981) of k pairs for noise of variance σ² along
-/// the normals: E Σ_v (n_v·(S_k y − x)_v)² = residual_k − mσ² + 2σ² tr S_k. It holds for any
-/// zero-mean noise of that variance, since S_k is linear.
-inline Scalar taubin_risk(const TaubinRiskCurves& c, std::size_t k, Scalar sigma) {
+/// Stein's unbiased risk estimate (Stein 1981) of a smoother f over m values with noise of
+/// variance σ²: E |f(y) − x|² = |f(y) − y|² − mσ² + 2σ² div f, `divergence` being div f
+/// (tr S for a linear f = S y).
+inline Scalar stein_risk(Scalar residual, std::size_t m, Scalar sigma, Scalar divergence) {
     const Scalar s2 = sigma * sigma;
-    return c.residual[k] - static_cast<Scalar>(c.moved) * s2 + 2 * s2 * c.trace[k];
+    return residual - static_cast<Scalar>(m) * s2 + 2 * s2 * divergence;
+}
+
+/// stein_risk of k pairs for noise of variance σ² along the normals: E Σ_v (n_v·(S_k y − x)_v)².
+/// It holds for any zero-mean noise of that variance, since S_k is linear.
+inline Scalar taubin_risk(const TaubinRiskCurves& c, std::size_t k, Scalar sigma) {
+    return stein_risk(c.residual[k], c.moved, sigma, c.trace[k]);
 }
 
 /// The step count of least taubin_risk for σ (the first of equal ones).

@@ -652,6 +652,15 @@ inline std::size_t drop_duplicate_faces(std::vector<Face>& faces) {
 }
 
 /// Features computed on the reordered mesh, renumbered back to the input's vertices.
+/// Edges (vertex pairs) renumbered through `map`, each as (a < b), the list sorted.
+inline void renumber_edges(std::vector<std::array<Index, 2>>& edges, const std::vector<Index>& map) {
+    for (auto& e : edges) {
+        e = {map[e[0]], map[e[1]]};
+        if (e[0] > e[1]) std::swap(e[0], e[1]);
+    }
+    std::sort(edges.begin(), edges.end());
+}
+
 inline void restore_order(SharpFeatures& f, const std::vector<Index>& order) {
     if (f.edge_strength.empty()) return;
     auto back = [&](auto& a) {
@@ -663,11 +672,7 @@ inline void restore_order(SharpFeatures& f, const std::vector<Index>& order) {
     back(f.eigenvectors);
     std::vector<Index> inverse(order.size());
     for (std::size_t v = 0; v < order.size(); ++v) inverse[order[v]] = v;
-    for (auto& e : f.sharp_edges) {
-        e = {inverse[e[0]], inverse[e[1]]};
-        if (e[0] > e[1]) std::swap(e[0], e[1]);
-    }
-    std::sort(f.sharp_edges.begin(), f.sharp_edges.end());
+    renumber_edges(f.sharp_edges, inverse);
 }
 
 }  // namespace detail::fbs
@@ -725,13 +730,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
 /// detection (select_by_risk's perturbed run: the features of the first run).
 inline FeatureData given_features(const std::vector<std::array<Index, 2>>& given, const std::vector<Index>& order) {
     FeatureData fd;
-    fd.sharp_edges.reserve(given.size());
-    for (const auto& e : given) {
-        std::array<Index, 2> f{order[e[0]], order[e[1]]};
-        if (f[0] > f[1]) std::swap(f[0], f[1]);
-        fd.sharp_edges.push_back(f);
-    }
-    std::sort(fd.sharp_edges.begin(), fd.sharp_edges.end());
+    fd.sharp_edges = given;
+    renumber_edges(fd.sharp_edges, order);
     return fd;
 }
 
@@ -1046,9 +1046,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 k = k2;
             }
             if (const Scalar sk = implied(k); sk > 0) s = sk;  // not converged in 20: σ of the last count
-            const Scalar s2 = s * s;
             const Scalar risk_taubin = taubin_risk(curves, k, s);
-            const Scalar risk_filters = residual - ms * s2 + 2 * s2 * (divergence / (sigma * sigma));
+            const Scalar risk_filters = stein_risk(residual, m, s, divergence / (sigma * sigma));
             result.risk.taubin_iterations = k;
             result.risk.sigma = frame.to_world(s);
             result.risk.filters_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_filters) / ms));
