@@ -179,6 +179,37 @@ TEST_CASE_TEMPLATE("the surface is a signed field: negative inside, distance-lik
     CHECK((fd - mls.gradient(x)).norm() < 1e-3);
 }
 
+TEST_CASE("MLS projection onto a flat patch of equal normals stays on it (a nearly zero u_q)") {
+    // Samples on one tilted plane with one normal (a large flat facet, as bunny00's bottom):
+    // the sphere fit's u_q is rounding noise, ~1e-14. Projected through the sphere's centre
+    // -u_l / 2u_q, such a fit put points 1e14 away and rounded them to 1/64: 250 radii off.
+    const Vec3 n = Vec3(0.0276, -0.999, -0.0364).normalized();
+    Vec3 e1 = n.cross(Vec3::UnitX()).normalized();
+    const Vec3 e2 = n.cross(e1);
+    const Vec3 o(-0.06, -0.4607, -0.05);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<Scalar> U(-0.05, 0.05);
+    ks::PointCloud c;
+    for (int i = 0; i < 2000; ++i) {
+        c.points.push_back(o + U(rng) * e1 + U(rng) * e2);
+        c.normals.push_back(n);
+    }
+    const ks::PointSetSurface mls(c, {.k = 20, .min_support_factor = 2});
+    std::size_t worst_at = 0;
+    Scalar worst = 0;
+    for (int i = 0; i < 500; ++i) {
+        const Scalar a = 0.8 * U(rng), b = 0.8 * U(rng), h = 0.02 * U(rng);
+        const Vec3 x = o + a * e1 + b * e2 + h * n;
+        const auto p = mls.project(x);
+        const Vec3 foot = o + a * e1 + b * e2;
+        const Scalar err = (p.point - foot).norm();
+        if (err > worst) worst = err, worst_at = static_cast<std::size_t>(i);
+        CHECK(p.normal.dot(n) > 1 - 1e-9);
+    }
+    INFO("query " << worst_at);
+    CHECK(worst < 1e-12);
+}
+
 TEST_CASE("MLS: bad input throws invalid_input naming the function and the fix") {
     const ks::PointCloud good = Sphere{}.sample(100, 41);
     using Msg = doctest::Contains;

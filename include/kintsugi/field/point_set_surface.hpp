@@ -114,20 +114,22 @@ struct LocalFit {
         return uc + ul.dot(d) + uq * d.squaredNorm();
     }
     [[nodiscard]] Vec3 gradient(const Vec3& y) const { return ul + 2 * uq * (y - origin); }
-    /// Closest point of the zero set to y (sphere: radial; plane: orthogonal).
+    /// Closest point of the zero set to y (sphere: radial; plane: orthogonal): y + t ∇s,
+    /// t the root of s(y + t ∇s) = 0 nearest 0, written without the sphere's centre
+    /// (Guennebaud & Gross 2007; as Patate's AlgebraicSphere::project). Through the centre
+    /// −u_l / 2u_q, a nearly flat fit (u_q ~ 1e-14 from almost equal normals) put the
+    /// point on a 1e14-wide sphere and rounded it to 1/64 of the model (bunny00's flat
+    /// bottom: projections 250 radii away, disks left open).
     [[nodiscard]] Vec3 project(const Vec3& y) const {
-        const Vec3 d = y - origin;
-        if (uq != 0) {
-            const Vec3 c = -ul / (2 * uq);
-            const Scalar r2 = c.squaredNorm() - uc / uq;
-            const Vec3 v = d - c;
-            const Scalar len = v.norm();
-            if (r2 > 0 && len > 0) return origin + c + v * (std::sqrt(r2) / len);
-        }
-        // Plane (or a degenerate sphere): one Newton step along the gradient.
         const Vec3 g = gradient(y);
         const Scalar g2 = g.squaredNorm();
-        return g2 > 0 ? Vec3(y - value(y) * g / g2) : y;
+        if (!(g2 > 0)) return y;
+        // |∇s|² − 4 u_q s is the Pratt norm, 1 for a normalised fit: the rationalised root
+        // −2s / (|∇s| (|∇s| + √(|∇s|² − 4 u_q s))) has no cancellation; u_q = 0 gives the
+        // plane's Newton step −s / |∇s|².
+        const Scalar v = value(y), gn = std::sqrt(g2);
+        const Scalar disc = std::max(Scalar(0), g2 - 4 * uq * v);
+        return y - (2 * v / (gn * (gn + std::sqrt(disc)))) * g;
     }
 };
 
