@@ -57,6 +57,11 @@
 //   3.89 / 4.21 s for the defaults, back to back (perturbed run 1.1-1.4 s, Taubin sweep 2.0-2.2 s;
 //   the filters kept, 39 Taubin pairs of least risk); the first version (detection rerun, serial
 //   buffer copies in the sweep) 9.2-10.8 s. Noise table with the risk-selection column: 454-471 s.
+// 2026-12-06 (the sweep in single precision over Morton-renumbered vertices): each
+//   configuration in its own process, 3 calls: defaults 4.78-4.94 s first call, 3.07-3.42 s
+//   later; risk selection 7.38-7.67 / 5.01-5.32 s (sweep 0.86-0.98 s, was 1.8 s; perturbed run
+//   1.14-1.49 s): 1.5-1.7x. Run 3/1 and 3/3 in separate processes: the first call in a process
+//   pays about 1.5 s for fresh memory on this VM.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

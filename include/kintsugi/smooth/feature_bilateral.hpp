@@ -176,7 +176,7 @@
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. The cost is a second run of the filters
-/// without the detection and up to 200 Taubin steps (1.5-1.8× the time on 590K faces), hence
+/// without the detection and up to 200 Taubin steps (1.5-1.7× the time on 590K faces), hence
 /// off by default. Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
 /// ## Neighbourhoods and cost
@@ -303,7 +303,7 @@ struct FeatureBilateralParams {
     /// Also run Taubin smoothing (detail::taubin_risk_curves, at most
     /// `risk_taubin_max_iterations` pairs) and return its result when its estimated error along
     /// the normals is below 0.75 times the filters' (squared errors; "Risk selection" above). Default false: it
-    /// costs a second run of the filters and the Taubin sweep, 1.5-1.8× the time; true pays on
+    /// costs a second run of the filters and the Taubin sweep, 1.5-1.7× the time; true pays on
     /// smooth organic shapes, where Taubin wins (fertility at 0.3|e|: 8.9° → 5.7°).
     bool risk_selection = false;
     /// Most Taubin λ|μ pairs the risk selection tries. Range 1–10000; default 200 (the best
