@@ -208,6 +208,28 @@ TEST_CASE("MLS projection onto a flat patch of equal normals stays on it (a near
     }
     INFO("query " << worst_at);
     CHECK(worst < 1e-12);
+
+    // The step itself, on Pratt-normalised fits (|u_l|² − 4 u_c u_q = 1): a plane (u_q = 0), two
+    // nearly flat spheres and a unit sphere, from points on either side.
+    for (const Scalar uq : {0.0, 1e-16, 1e-14, 0.5, -0.5}) {
+        ks::detail::pss::LocalFit f;
+        f.origin = Vec3(0.3, -0.46, 0.1);
+        f.uq = uq;
+        f.uc = 0;  // through the origin; radius 1 / 2|u_q| (1 when |u_q| = 0.5)
+        f.ul = Vec3(0, 0, 1);
+        for (const Scalar h : {-0.2, -1e-3, 0.0, 1e-3, 0.2}) {
+            const Vec3 y = f.origin + Vec3(0.01, -0.02, h);
+            const Vec3 p = f.project(y);
+            INFO("u_q " << uq << ", offset " << h);
+            CHECK(std::abs(f.value(p)) < 1e-14);
+            if (std::abs(uq) < 1e-12) {
+                CHECK((p - (y - Vec3(0, 0, h))).norm() < 1e-14);  // the foot on the plane
+            } else {  // the radial projection onto the sphere of centre −u_l / 2u_q, radius 1
+                const Vec3 c = f.origin - f.ul / (2 * uq);
+                CHECK((p - (c + (y - c).normalized())).norm() < 1e-12);
+            }
+        }
+    }
 }
 
 TEST_CASE("MLS: bad input throws invalid_input naming the function and the fix") {

@@ -1226,6 +1226,21 @@ TEST_CASE("taubin_risk_curves: Stein's estimate follows the true error of every 
     (void)ks::smooth_taubin(t, {}, {.iterations = k});
     MESSAGE("least estimated risk at " << k << " steps (true best of those tried " << true_best << ")");
     CHECK(normal_error_sum(t, clean) < 1.05 * true_best_err);
+
+    // Far from the origin (a georeferenced scan: 5e6 away, the bunny's extent ~0.15): the sweep
+    // keeps positions in single precision relative to the box centre, so the curves stay those
+    // of the mesh at the origin (cast without the centre, the residual at k = 0 read 0.07 mσ²
+    // already at 1e4 and the least-risk count fell to 0).
+    auto far = noisy.vertices;
+    for (auto& v : far) v += ks::Vec3(5e6, -3e6, 2e6);
+    const auto moved_curves = ks::detail::taubin_risk_curves(far, topo, normals, sigma, 60, {}, progress);
+    REQUIRE(moved_curves.residual.size() == curves.residual.size());
+    CHECK(moved_curves.residual[0] == 0);
+    for (std::size_t j = 1; j < curves.residual.size(); ++j) {
+        CHECK(std::abs(moved_curves.residual[j] - curves.residual[j]) < 1e-3 * m_s2);
+        CHECK(moved_curves.trace[j] == doctest::Approx(curves.trace[j]).epsilon(1e-4));
+    }
+    CHECK(ks::detail::least_risk_steps(moved_curves, sigma) == k);
 }
 
 TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filters' on a box, on every mesh type", T,

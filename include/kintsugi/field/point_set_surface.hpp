@@ -380,7 +380,9 @@ private:
             const Scalar num = spn - inv * sp.dot(sn);
             const Scalar den1 = inv * sp.dot(sp);
             const Scalar den = spp - den1;
-            // A (near-)planar neighbourhood has den ~ 0: the plane is the fit.
+            // den is the spread of the positions, ~0 only when the samples (nearly) coincide: the
+            // plane is the fit then. (Equal normals make num ~0 instead: u_q is rounding noise,
+            // which LocalFit::project handles.)
             if (std::abs(den) > 1e-12 * std::max(den1, spp)) uq = num / (2 * den);
         }
         Vec3 ul = (sn - sp * (2 * uq)) * inv;

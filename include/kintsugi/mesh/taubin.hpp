@@ -130,6 +130,8 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 /// the sums are taken in the second half step, in double (BM_feature_bilateral/3/3: 1.8 s →
 /// 0.7 s for 201 pairs). The returned mesh is recomputed by taubin_smooth in double.
 /// Deterministic: per-vertex arithmetic, sums folded in fixed chunks (parallel_reduce).
+/// @pre `active` holds every vertex with a neighbour (so it is closed under neighbours) and
+///      counted[v] != 0 only for v in `active`: taubin_risk_curves builds them so.
 template <std::size_t probes>
 TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshTopology& topo,
                                          const std::vector<Index>& active, const std::vector<std::uint8_t>& counted,
@@ -146,6 +148,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
         const std::vector<Index> by_code = morton_order(m, box, [&](Index i) { return y[active[i]]; });
         for (std::size_t k = 0; k < m; ++k) order[k] = active[by_code[k]];
     }
+    // Local indices are 32-bit (2^32 moving vertices would take hundreds of GB before this).
     std::vector<Index> local(y.size(), Index(-1));
     for (std::size_t k = 0; k < m; ++k) local[order[k]] = static_cast<Index>(k);
     std::vector<std::size_t> offsets(m + 1, 0);
@@ -155,11 +158,30 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
         std::size_t o = offsets[k];
         for (Index u : topo.vertex_neighbors(order[k])) nbr[o++] = static_cast<std::uint32_t>(local[u]);  // the one-ring's order: same sums
     }, 4096);
-    // Per local vertex: state (position and probes); for the sums, n, n·y, the initial probes and
-    // whether it is counted (a normal). The probes' seed sequence follows the input order.
+    // Per local vertex: state (position relative to the box centre, then the probes); for the
+    // sums, n, n·y (in double, from the stored floats: the residual at k = 0 is exactly 0), the
+    // initial probes and whether it is counted (a normal). Positions are taken relative to the
+    // centre in double before the cast, so their rounding is relative to the extent, not to
+    // the distance from the origin (a scan 5e6 from it with an extent of 100 would otherwise
+    // lose the noise). The probes' seed sequence follows the input order.
+    Vec3 centre = Vec3::Zero();
+    if (m > 0) {
+        Vec3 lo = y[active[0]], hi = lo;
+        for (Index v : active) {
+            lo = lo.cwiseMin(y[v]);
+            hi = hi.cwiseMax(y[v]);
+        }
+        centre = lo + (hi - lo) / 2;
+    }
     std::vector<float> state(stride * m, 0), next(stride * m, 0);
-    std::vector<float> nrm(3 * m, 0), ny(m, 0), z0(probes * m, 0);
+    std::vector<float> nrm(3 * m, 0), z0(probes * m, 0);
+    std::vector<Scalar> ny(m, 0);
     std::vector<std::uint8_t> is_counted(m, 0);
+    for (std::size_t k = 0; k < m; ++k)
+        for (int c = 0; c < 3; ++c) state[stride * k + c] = static_cast<float>(y[order[k]][c] - centre[c]);
+    auto dot_n = [&](std::size_t k, const float* s) {
+        return Scalar(nrm[3 * k]) * s[0] + Scalar(nrm[3 * k + 1]) * s[1] + Scalar(nrm[3 * k + 2]) * s[2];
+    };
     std::uint64_t seed = 0x9E3779B97F4A7C15ull;
     for (std::size_t v = 0; v < y.size(); ++v) {
         if (!counted[v]) continue;
@@ -171,14 +193,11 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
             z0[probes * k + p] = state[stride * k + 3 + p] = (seed >> 63) ? 1 : -1;
         }
         for (int c = 0; c < 3; ++c) nrm[3 * k + c] = static_cast<float>(normals[v][c]);
-        ny[k] = static_cast<float>(normals[v].dot(y[v]));
+        ny[k] = dot_n(k, &state[stride * k]);
     }
-    for (std::size_t k = 0; k < m; ++k)
-        for (int c = 0; c < 3; ++c) state[stride * k + c] = static_cast<float>(y[order[k]][c]);
     using Sums = std::array<Scalar, 3>;
     auto add_sums = [&](std::size_t k, const float* s, Sums& acc) {
-        const Scalar h = Scalar(nrm[3 * k]) * s[0] + Scalar(nrm[3 * k + 1]) * s[1] + Scalar(nrm[3 * k + 2]) * s[2] -
-                         Scalar(ny[k]);
+        const Scalar h = dot_n(k, s) - ny[k];
         acc[0] += h * h;
         for (std::size_t p = 0; p < probes; ++p) {
             acc[1] += Scalar(z0[probes * k + p]) * s[3 + p];

@@ -181,8 +181,6 @@ constexpr Scalar projection_tolerance = 0.01;
 /// disk is not placed. 4, not 1: on the kitten scan (5K points, radius 0.01 of the
 /// diagonal) a legitimate projection moves a disk by 1-4 r, and 1 r left a gap open.
 constexpr Scalar jump_radii = 4;
-/// A new surfel closer than this times its radius to an existing centre is not placed.
-constexpr Scalar redundant_fraction = 0.1;
 /// Most tiles one parallel pass takes before its new surfels are merged and progress
 /// (and cancellation) is reported: bounds the time between two reports.
 constexpr std::size_t tiles_per_pass = 2048;

@@ -31,6 +31,8 @@ constexpr Scalar two_pi = 2 * std::numbers::pi_v<Scalar>;
 /// Boundary arcs shorter than this (radians) count as covered: 1e-7 r is far below any
 /// pixel, and ignoring it keeps rounding from adding surfels forever.
 constexpr Scalar angle_tolerance = 1e-7;
+/// A new surfel closer than this times its radius to an existing centre is not placed.
+constexpr Scalar redundant_fraction = 0.1;
 
 /// A disk projected onto the tangent plane of the surfel being processed (a circle).
 struct Circle {
@@ -257,12 +259,12 @@ inline void fill_plane(Scalar ri, Scalar rn, std::vector<Circle>& circles, Plane
     };
     auto at_angle = [](Scalar angle, Scalar dist) { return Vec2(dist * std::cos(angle), dist * std::sin(angle)); };
     // A new disk near p_i or a neighbour's centre repeats that surfel: the fill drops a disk
-    // that lands within 0.1 r_new of a centre (redundant_fraction) and i stays open. Tested
-    // here at 0.2 r_new, since the back-projection moves a disk by a few hundredths of r:
-    // an orthocentre 0.1002 r_new from a neighbour in the plane landed 0.099 r_new from it
+    // that lands within redundant_fraction r_new of a centre and i stays open. Tested here at
+    // twice that, since the back-projection moves a disk by a few hundredths of r: an
+    // orthocentre 0.1002 r_new from a neighbour in the plane landed 0.099 r_new from it
     // (bunny00 134K, the one surfel left open).
     auto on_centre = [&](const Vec2& q) {
-        constexpr Scalar near = 0.2;
+        constexpr Scalar near = 2 * redundant_fraction;
         if (q.norm() < near * rn) return true;
         for (const Circle& k : circles)
             if ((k.c - q).norm() < near * rn) return true;
