@@ -61,7 +61,9 @@
 //   configuration in its own process, 3 calls: defaults 4.78-4.94 s first call, 3.07-3.42 s
 //   later; risk selection 7.38-7.67 / 5.01-5.32 s (sweep 0.86-0.98 s, was 1.8 s; perturbed run
 //   1.14-1.49 s): 1.5-1.7x. Run 3/1 and 3/3 in separate processes: the first call in a process
-//   pays about 1.5 s for fresh memory on this VM.
+//   pays about 1.5 s for fresh memory on this VM. With the sweep stopping on the count for 1.1σ
+//   (was 1.25σ), an hour later in a faster phase: defaults 4.14 / 2.65-2.77 s, risk selection
+//   5.96 / 4.58-4.66 s (sweep 0.53-0.65 s): 1.4-1.8x over both sets.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

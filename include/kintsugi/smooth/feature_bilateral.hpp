@@ -176,7 +176,7 @@
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. The cost is a second run of the filters
-/// without the detection and up to 200 Taubin steps (1.5-1.7× the time on 590K faces), hence
+/// without the detection and up to 200 Taubin steps (1.4-1.8× the time on 590K faces), hence
 /// off by default. Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
 /// ## Neighbourhoods and cost
@@ -303,7 +303,7 @@ struct FeatureBilateralParams {
     /// Also run Taubin smoothing (detail::taubin_risk_curves, at most
     /// `risk_taubin_max_iterations` pairs) and return its result when its estimated error along
     /// the normals is below 0.75 times the filters' (squared errors; "Risk selection" above). Default false: it
-    /// costs a second run of the filters and the Taubin sweep, 1.5-1.7× the time; true pays on
+    /// costs a second run of the filters and the Taubin sweep, 1.4-1.8× the time; true pays on
     /// smooth organic shapes, where Taubin wins (fertility at 0.3|e|: 8.9° → 5.7°).
     bool risk_selection = false;
     /// Most Taubin λ|μ pairs the risk selection tries. Range 1–10000; default 200 (the best
@@ -936,6 +936,9 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
 /// Taubin's result is returned when its estimated risk is below this fraction of the
 /// filters' (see select_by_risk).
 inline constexpr Scalar risk_ratio = 0.75;
+/// The selection is skipped when the σ its Taubin residual implies exceeds the estimate by
+/// more than this factor; the sweep covers the least-risk counts of every σ up to it.
+inline constexpr Scalar risk_sigma_limit = 1.1;
 
 /// The run of FeatureBilateralParams::risk_selection ("Risk selection" in the file comment):
 /// the filters, their Monte-Carlo SURE from a second run on a perturbed input, Taubin's sweep,
@@ -1023,7 +1026,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             const RunControl sweep_control = part_control(params.control, 0.8, 1.0, last);
             Progress progress(sweep_control);
             progress.stage("risk: Taubin sweep", 0.0, 1.0);
-            const TaubinRiskCurves curves = taubin_risk_curves(y, topo, normals, sigma,
+            const TaubinRiskCurves curves = taubin_risk_curves(y, topo, normals, risk_sigma_limit * sigma,
                                                                params.risk_taubin_max_iterations, TaubinParams{}, progress);
             // σ from the Taubin residual itself: E res_k = σ²(m − 2 tr S_k + tr S_kᵀS_k) + bias, so
             // σ² = res_k / (m − 2 tr S_k + tr S_kᵀS_k) at the count of least risk for σ, to a fixed
@@ -1052,7 +1055,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             result.risk.sigma = frame.to_world(s);
             result.risk.filters_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_filters) / ms));
             result.risk.taubin_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_taubin) / ms));
-            if (!(s <= 1.1 * sigma)) {
+            if (!(s <= risk_sigma_limit * sigma)) {
                 skip("the Taubin residual implies a noise of " + std::to_string(s / sigma) +
                      " times the estimate (heavy-tailed noise, or shape Taubin removes; the estimates "
                      "assume Gaussian-like noise)");
