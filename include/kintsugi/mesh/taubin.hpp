@@ -108,6 +108,15 @@ inline Scalar taubin_risk(const TaubinRiskCurves& c, std::size_t k, Scalar sigma
     return stein_risk(c.residual[k], c.moved, sigma, c.trace[k]);
 }
 
+/// The vertices the risks sum over (taubin_risk_curves and the filters' risk beside it): those
+/// Taubin moves (with a neighbour) that have a non-zero normal.
+inline std::vector<std::uint8_t> risk_counted(const MeshTopology& topo, const std::vector<Vec3>& normals) {
+    std::vector<std::uint8_t> counted(normals.size(), 0);
+    for (std::size_t v = 0; v < normals.size(); ++v)
+        counted[v] = !topo.vertex_neighbors(static_cast<Index>(v)).empty() && normals[v].squaredNorm() > 0;
+    return counted;
+}
+
 /// The step count of least taubin_risk for σ (the first of equal ones).
 inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
     std::size_t best = 0;
@@ -167,15 +176,9 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
     // centre in double before the cast, so their rounding is relative to the extent, not to
     // the distance from the origin (a scan 5e6 from it with an extent of 100 would otherwise
     // lose the noise). The probes' seed sequence follows the input order.
-    Vec3 centre = Vec3::Zero();
-    if (m > 0) {
-        Vec3 lo = y[active[0]], hi = lo;
-        for (Index v : active) {
-            lo = lo.cwiseMin(y[v]);
-            hi = hi.cwiseMax(y[v]);
-        }
-        centre = lo + (hi - lo) / 2;
-    }
+    BoundingBox box;
+    for (Index v : active) box.extend(y[v]);
+    const Vec3 centre = box.center();
     std::vector<float> state(stride * m, 0), next(stride * m, 0);
     std::vector<float> nrm(3 * m, 0), z0(probes * m, 0);
     std::vector<Scalar> ny(m, 0);
@@ -263,11 +266,8 @@ inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const Mes
                                            const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
                                            const TaubinParams& params, Progress& progress) {
     const std::vector<Index> active = movable_vertices(topo, y.size(), {}).vertices;
-    std::vector<std::uint8_t> counted(y.size(), 0);
-    std::size_t n = 0;
-    for (Index v : active)
-        if (normals[v].squaredNorm() > 0) counted[v] = 1, ++n;
-    n = std::max<std::size_t>(n, 1);
+    const std::vector<std::uint8_t> counted = risk_counted(topo, normals);
+    const std::size_t n = std::max<std::size_t>(static_cast<std::size_t>(std::count(counted.begin(), counted.end(), 1)), 1);
     const std::size_t want = ((std::size_t{1} << 17) + n - 1) / n;  // rounded up
     auto run = [&]<std::size_t P>() {
         return taubin_risk_curves_with<P>(y, topo, active, counted, normals, sigma, max_steps, params, progress);

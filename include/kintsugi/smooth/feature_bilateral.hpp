@@ -651,7 +651,6 @@ inline std::size_t drop_duplicate_faces(std::vector<Face>& faces) {
     return removed;
 }
 
-/// Features computed on the reordered mesh, renumbered back to the input's vertices.
 /// Edges (vertex pairs) renumbered through `map`, each as (a < b), the list sorted.
 inline void renumber_edges(std::vector<std::array<Index, 2>>& edges, const std::vector<Index>& map) {
     for (auto& e : edges) {
@@ -661,6 +660,7 @@ inline void renumber_edges(std::vector<std::array<Index, 2>>& edges, const std::
     std::sort(edges.begin(), edges.end());
 }
 
+/// Features computed on the reordered mesh, renumbered back to the input's vertices.
 inline void restore_order(SharpFeatures& f, const std::vector<Index>& order) {
     if (f.edge_strength.empty()) return;
     auto back = [&](auto& a) {
@@ -982,10 +982,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             const Scalar sigma = frame.to_local(result.noise.sigma);
             const std::vector<Vec3> normals = kintsugi::vertex_normals(IndexedMesh{f, input.faces, {}});
             const MeshTopology topo(y.size(), input.faces);
-            // The vertices both risks sum over: a neighbour (Taubin moves them) and a normal.
-            std::vector<unsigned char> counted(y.size(), 0);
-            for (std::size_t v = 0; v < y.size(); ++v)
-                counted[v] = !topo.vertex_neighbors(static_cast<Index>(v)).empty() && normals[v].squaredNorm() > 0;
+            const std::vector<std::uint8_t> counted = risk_counted(topo, normals);  // as the sweep's
 
             // The filters' divergence along the normals: one run, with the values and the sharp
             // edges the first chose, on the input moved by eps·σ·z_v along n_v (z_v = ±1, fixed seed).
