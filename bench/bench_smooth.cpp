@@ -63,7 +63,11 @@
 //   1.14-1.49 s): 1.5-1.7x. Run 3/1 and 3/3 in separate processes: the first call in a process
 //   pays about 1.5 s for fresh memory on this VM. With the sweep stopping on the count for 1.1σ
 //   (was 1.25σ), an hour later in a faster phase: defaults 4.14 / 2.65-2.77 s, risk selection
-//   5.96 / 4.58-4.66 s (sweep 0.53-0.65 s): 1.4-1.8x over both sets.
+//   5.96 / 4.58-4.66 s (sweep 0.53-0.65 s): 1.4-1.8x over both sets. The perturbed run on the
+//   first run's order, topology, buffers and filter-3 sets (RunReuse), back to back against the
+//   build before, 3 processes each: first call 5.41-5.57 s against 5.95-6.98 s, later calls
+//   4.13-4.31 s against 4.35-4.63 s (perturbed run 0.86-0.93 s against 1.01-1.37 s); with the
+//   defaults in the same hour (4.26-4.43 / 3.07-3.70 s): 1.3-1.6x.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

@@ -85,7 +85,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_flag("--risk-selection", o->risk_selection,
                  "Also run Taubin smoothing (step count of least estimated risk) and keep its result where its "
                  "estimated error along the normals is clearly lower (smooth organic shapes; the sharp edges reported stay the "
-                 "filters'); about 1.4-1.8x the time");
+                 "filters'); about 1.3-1.6x the time");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
         if (o->no_features && !o->features.empty())

@@ -142,13 +142,17 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 /// the sums are taken in the second half step, in double (BM_feature_bilateral/3/3: 1.8 s →
 /// 0.7 s for 201 pairs). The returned mesh is recomputed by taubin_smooth in double.
 /// Deterministic: per-vertex arithmetic, sums folded in fixed chunks (parallel_reduce).
+/// The probes are drawn vertex by vertex in `draw_order` (every vertex once; empty: index
+/// order), so that a caller holding the vertices in an order of its own can keep the draws of
+/// the user's order (select_by_risk).
 /// @pre `active` holds every vertex with a neighbour (so it is closed under neighbours) and
 ///      counted[v] != 0 only for v in `active`: taubin_risk_curves builds them so.
 template <std::size_t probes>
 TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshTopology& topo,
                                          const std::vector<Index>& active, const std::vector<std::uint8_t>& counted,
                                          const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
-                                         const TaubinParams& params, Progress& progress) {
+                                         const TaubinParams& params, Progress& progress,
+                                         const std::vector<Index>& draw_order) {
     constexpr std::size_t stride = 3 + probes;  // x, y, z, then the probes
     const std::size_t m = active.size();
     TaubinRiskCurves out;
@@ -175,7 +179,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
     // initial probes and whether it is counted (a normal). Positions are taken relative to the
     // centre in double before the cast, so their rounding is relative to the extent, not to
     // the distance from the origin (a scan 5e6 from it with an extent of 100 would otherwise
-    // lose the noise). The probes' seed sequence follows the input order.
+    // lose the noise). The probes' seed sequence follows `draw_order`.
     BoundingBox box;
     for (Index v : active) box.extend(y[v]);
     const Vec3 centre = box.center();
@@ -189,7 +193,8 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
         return Scalar(nrm[3 * k]) * s[0] + Scalar(nrm[3 * k + 1]) * s[1] + Scalar(nrm[3 * k + 2]) * s[2];
     };
     std::uint64_t seed = 0x9E3779B97F4A7C15ull;
-    for (std::size_t v = 0; v < y.size(); ++v) {
+    for (std::size_t i = 0; i < y.size(); ++i) {
+        const Index v = draw_order.empty() ? static_cast<Index>(i) : draw_order[i];
         if (!counted[v]) continue;
         const Index k = local[v];
         is_counted[k] = 1;
@@ -264,13 +269,15 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
 
 inline TaubinRiskCurves taubin_risk_curves(const std::vector<Vec3>& y, const MeshTopology& topo,
                                            const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
-                                           const TaubinParams& params, Progress& progress) {
+                                           const TaubinParams& params, Progress& progress,
+                                           const std::vector<Index>& draw_order = {}) {
     const std::vector<Index> active = movable_vertices(topo, y.size(), {}).vertices;
     const std::vector<std::uint8_t> counted = risk_counted(topo, normals);
     const std::size_t n = std::max<std::size_t>(static_cast<std::size_t>(std::count(counted.begin(), counted.end(), 1)), 1);
     const std::size_t want = ((std::size_t{1} << 17) + n - 1) / n;  // rounded up
     auto run = [&]<std::size_t P>() {
-        return taubin_risk_curves_with<P>(y, topo, active, counted, normals, sigma, max_steps, params, progress);
+        return taubin_risk_curves_with<P>(y, topo, active, counted, normals, sigma, max_steps, params, progress,
+                                          draw_order);
     };
     if (want <= 2) return run.template operator()<2>();
     if (want <= 4) return run.template operator()<4>();

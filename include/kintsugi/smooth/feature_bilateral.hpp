@@ -176,7 +176,7 @@
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. The cost is a second run of the filters
-/// without the detection and up to 200 Taubin steps (1.4-1.8× the time on 590K faces), hence
+/// without the detection and up to 200 Taubin steps (1.3-1.6× the time on 590K faces), hence
 /// off by default. Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
 /// ## Neighbourhoods and cost
@@ -303,7 +303,7 @@ struct FeatureBilateralParams {
     /// Also run Taubin smoothing (detail::taubin_risk_curves, at most
     /// `risk_taubin_max_iterations` pairs) and return its result when its estimated error along
     /// the normals is below 0.75 times the filters' (squared errors; "Risk selection" above). Default false: it
-    /// costs a second run of the filters and the Taubin sweep, 1.4-1.8× the time; true pays on
+    /// costs a second run of the filters and the Taubin sweep, 1.3-1.6× the time; true pays on
     /// smooth organic shapes, where Taubin wins (fertility at 0.3|e|: 8.9° → 5.7°).
     bool risk_selection = false;
     /// Most Taubin λ|μ pairs the risk selection tries. Range 1–10000; default 200 (the best
@@ -735,11 +735,27 @@ inline FeatureData given_features(const std::vector<std::array<Index, 2>>& given
     return fd;
 }
 
+/// What select_by_risk's perturbed run takes over from the first run instead of computing it
+/// again: the vertex order, the faces (duplicates dropped) and the frame, the topology, the
+/// buffers, and the mean edge length after the low-pass. Filter 3 keeps the first run's
+/// neighbour sets of the face smoothing: like the sharp edges, a discrete choice the
+/// divergence (a derivative) must not see change. About 0.1-0.4 s of the 1.0-1.4 s
+/// perturbed run at 590K faces, and no second set of buffers to fault in.
+struct RunReuse {
+    bool filled = false;  ///< set by the first run; the second run then reads it
+    SpatialOrder so;
+    MeshTopology topo;
+    Workspace ws;
+    Scalar L = 0;
+};
+
 /// smooth_feature_bilateral without the risk selection; with `given_edges`, those sharp edges
-/// (input indices) instead of the coplanar stage and the detection.
+/// (input indices) instead of the coplanar stage and the detection. With `reuse` (unfilled),
+/// the run leaves its state there; with `reuse` filled, it starts from that state (the mesh
+/// must have the first run's connectivity: select_by_risk's perturbed input).
 template <MutableTriangleMesh M>
 FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
-                                  const std::vector<std::array<Index, 2>>* given_edges);
+                                  const std::vector<std::array<Index, 2>>* given_edges, RunReuse* reuse = nullptr);
 }  // namespace detail::fbs
 
 /// @brief Feature-aware bilateral smoothing (Shimizu, Date, Kanai, Kishinami): sharp
@@ -775,7 +791,7 @@ namespace detail::fbs {
 
 template <MutableTriangleMesh M>
 FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
-                                  const std::vector<std::array<Index, 2>>* given_edges) {
+                                  const std::vector<std::array<Index, 2>>* given_edges, RunReuse* reuse) {
     constexpr const char* fn = "kintsugi::smooth_feature_bilateral";
     namespace fbs = detail::fbs;
     SharpFeatureParams detection = params.detection;
@@ -790,26 +806,40 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
     fbs::check_count(fn, "vertex_iterations", params.vertex_iterations);
     if (params.lowpass_iterations) fbs::check_count(fn, "lowpass_iterations", *params.lowpass_iterations);
     fbs::check_unit(fn, "lowpass_noise", params.lowpass_noise);
-    fbs::SpatialOrder so = [&] {
+    const bool reused = reuse && reuse->filled;
+    fbs::SpatialOrder own_so;
+    fbs::SpatialOrder& so = reuse ? reuse->so : own_so;
+    if (reused) {  // this run's positions in the first run's order and frame
         const IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
         fbs::check_mesh(fn, input);
-        return fbs::spatial_order(input);
-    }();
+        if (input.vertices.size() != so.order.size())
+            throw invalid_input(std::string(fn) + ": internal: the reused run has another vertex count");
+        for (std::size_t v = 0; v < input.vertices.size(); ++v)
+            so.mesh.vertices[so.order[v]] = so.frame.to_local(input.vertices[v]);
+    } else {
+        so = [&] {
+            const IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
+            fbs::check_mesh(fn, input);
+            return fbs::spatial_order(input);
+        }();
+    }
     IndexedMesh& m = so.mesh;
 
     FeatureBilateralResult result;
     result.vertices = m.vertices.size();
     result.faces = m.faces.size();
-    {
+    if (!reused) {
         fbs::FaceGeometry geo;
         fbs::compute_face_geometry(m.vertices, m.faces, geo);
         for (Scalar a : geo.area) result.degenerate_faces += a == 0;
+        result.duplicate_faces = fbs::drop_duplicate_faces(m.faces);
     }
-    result.duplicate_faces = fbs::drop_duplicate_faces(m.faces);
     detail::Progress progress(params.control);
     try {
         progress.stage("topology", 0.0, 0.02);
-        const MeshTopology topo(m.vertices.size(), m.faces);
+        MeshTopology own_topo;
+        MeshTopology& topo = reuse ? reuse->topo : own_topo;
+        if (!reused) topo = MeshTopology(m.vertices.size(), m.faces);
         Scalar L = fbs::checked_mean_edge(fn, m.vertices, topo);
         const std::size_t nv = m.vertices.size();
         const std::vector<unsigned char> has_face = fbs::used_vertices(m);
@@ -843,6 +873,8 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
                              result.noise_after_lowpass, params.control, progress, hold);
             L = fbs::checked_mean_edge(fn, m.vertices, topo);
         }
+        if (reused) L = reuse->L;  // as the first run's (the scale of filter 3's kept sets)
+        else if (reuse) reuse->L = L;
         const Scalar sigma = result.noise_after_lowpass.sigma;
         fbs::DataScales auto_scales = fbs::scales_from_noise(sigma / L);
         // The automatic low-pass on: the iterations follow the input's noise, whether or
@@ -868,7 +900,8 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
                                      face_iterations, params.features, result.normal_iterations,
                                      params.vertex_iterations};
         fbs::Barriers barriers;
-        fbs::Workspace ws;
+        fbs::Workspace own_ws;
+        fbs::Workspace& ws = reuse ? reuse->ws : own_ws;
         std::vector<std::array<Index, 2>> final_edges;  // straighten: the edges filters 1–2 rerun on
         std::vector<Index> final_vertices;
         if (params.features) {
@@ -910,7 +943,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
         for (std::size_t it = 0; it < face_iterations; ++it) {
             const double n = static_cast<double>(face_iterations);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
-                                static_cast<double>(it + 1) / n, ws, &barriers, it > 0);
+                                static_cast<double>(it + 1) / n, ws, &barriers, it > 0 || reused);
         }
         if (!final_edges.empty()) {
             progress.stage("edge straightening", 0.98, 1.0);
@@ -930,6 +963,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
     }
     for (std::size_t v = 0; v < m.vertices.size(); ++v)
         kintsugi::set_vertex_position(mesh, v, so.frame.to_world(m.vertices[so.order[v]]));
+    if (reuse) reuse->filled = true;
     return result;
 }
 
@@ -955,7 +989,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
     inner.control = part_control(params.control, 0.0, 0.4, last);
     const IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
     IndexedMesh filtered = input;
-    FeatureBilateralResult result = smooth_feature_bilateral(filtered, inner);  // validates the input
+    RunReuse reuse;  // the first run's state, for the perturbed run
+    FeatureBilateralResult result = smooth_run(filtered, inner, nullptr, &reuse);  // validates the input
     if (result.status == Status::cancelled) return result;
     auto report_done = [&] {
         if (params.control.stop.stop_requested()) throw cancelled_exception{};
@@ -974,14 +1009,19 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             skip("vertices were held (anchored faces: impulsive noise or exact planes)");
         } else {
             const auto t0 = std::chrono::steady_clock::now();
-            // In a power-of-two frame (exact), as smooth_taubin: any magnitude.
-            std::vector<Vec3> y = input.vertices, f = filtered.vertices;
-            const ScaleFrame frame = scale_frame(y, f);
-            frame.to_local(y);
-            frame.to_local(f);
+            // In the first run's vertex order and power-of-two frame (exact: any magnitude), on its
+            // topology (duplicate faces dropped).
+            const SpatialOrder& so = reuse.so;
+            const ScaleFrame& frame = so.frame;
+            const MeshTopology& topo = reuse.topo;
+            const std::size_t nv = input.vertices.size();
+            std::vector<Vec3> y(nv), f(nv);
+            for (std::size_t v = 0; v < nv; ++v) {
+                y[so.order[v]] = frame.to_local(input.vertices[v]);
+                f[so.order[v]] = frame.to_local(filtered.vertices[v]);
+            }
             const Scalar sigma = frame.to_local(result.noise.sigma);
-            const std::vector<Vec3> normals = kintsugi::vertex_normals(IndexedMesh{f, input.faces, {}});
-            const MeshTopology topo(y.size(), input.faces);
+            const std::vector<Vec3> normals = kintsugi::vertex_normals(IndexedMesh{f, so.mesh.faces, {}});
             const std::vector<std::uint8_t> counted = risk_counted(topo, normals);  // as the sweep's
 
             // The filters' divergence along the normals: one run, with the values and the sharp
@@ -994,37 +1034,41 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             fixed.lowpass_iterations = result.lowpass_iterations;
             fixed.detection = result.detection;
             fixed.control = part_control(params.control, 0.4, 0.8, last);
-            std::vector<Scalar> z(y.size(), 0);
+            std::vector<Scalar> z(nv, 0);  // by input index: the draws do not depend on the order
             std::uint64_t state = 0xD1B54A32D192ED03ull;
-            IndexedMesh perturbed{y, input.faces, {}};
-            for (std::size_t v = 0; v < y.size(); ++v) {
+            IndexedMesh perturbed{input.vertices, input.faces, {}};
+            for (std::size_t v = 0; v < nv; ++v) {
                 state = state * 6364136223846793005ull + 1442695040888963407ull;
-                z[v] = counted[v] ? ((state >> 63) ? 1 : -1) : 0;
-                perturbed.vertices[v] += eps * sigma * z[v] * normals[v];
+                const Index k = so.order[v];
+                z[v] = counted[k] ? ((state >> 63) ? 1 : -1) : 0;
+                perturbed.vertices[v] = frame.to_world(y[k] + eps * sigma * z[v] * normals[k]);
             }
-            frame.to_world(perturbed.vertices);
             // The first run's sharp edges, not a new detection: the divergence is a derivative,
             // which the detection's discrete choices do not have (a flipped edge would count).
-            const FeatureBilateralResult second = smooth_run(perturbed, fixed, &result.features.sharp_edges);
+            const FeatureBilateralResult second = smooth_run(perturbed, fixed, &result.features.sharp_edges, &reuse);
             if (second.status == Status::cancelled) throw cancelled_exception{};
-            frame.to_local(perturbed.vertices);
+            reuse.ws = {};  // the buffers, before the sweep allocates its own
             Scalar residual = 0, divergence = 0;
             std::size_t m = 0;
-            for (std::size_t v = 0; v < y.size(); ++v) {
-                if (!counted[v]) continue;
+            for (std::size_t v = 0; v < nv; ++v) {
+                const Index k = so.order[v];
+                if (!counted[k]) continue;
                 ++m;
-                const Scalar h = normals[v].dot(f[v] - y[v]);
+                const Scalar h = normals[k].dot(f[k] - y[k]);
                 residual += h * h;
-                divergence += sigma * z[v] * normals[v].dot(perturbed.vertices[v] - f[v]) / eps;
+                divergence += sigma * z[v] * normals[k].dot(frame.to_local(perturbed.vertices[v]) - f[k]) / eps;
             }
             const auto t1 = std::chrono::steady_clock::now();
             result.timings.push_back({"risk: perturbed run", std::chrono::duration<double>(t1 - t0).count()});
+            for (const StageTiming& t : second.timings) result.timings.push_back({"risk: perturbed " + t.stage, t.seconds});
 
             const RunControl sweep_control = part_control(params.control, 0.8, 1.0, last);
             Progress progress(sweep_control);
             progress.stage("risk: Taubin sweep", 0.0, 1.0);
+            // The probes drawn in the input's vertex order (so.order: input index → internal).
             const TaubinRiskCurves curves = taubin_risk_curves(y, topo, normals, risk_sigma_limit * sigma,
-                                                               params.risk_taubin_max_iterations, TaubinParams{}, progress);
+                                                               params.risk_taubin_max_iterations, TaubinParams{}, progress,
+                                                               so.order);
             // σ from the Taubin residual itself: E res_k = σ²(m − 2 tr S_k + tr S_kᵀS_k) + bias, so
             // σ² = res_k / (m − 2 tr S_k + tr S_kᵀS_k) at the count of least risk for σ, to a fixed
             // point from the estimate. The estimate reads detail as noise under light noise
@@ -1064,9 +1108,10 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 // tuned shapes).
                 result.risk.taubin = risk_filters > 0 && risk_taubin < risk_ratio * risk_filters;
                 if (result.risk.taubin) {
-                    taubin_world = y;
-                    (void)taubin_smooth(taubin_world, topo, {}, TaubinParams{.iterations = k}, progress);
-                    frame.to_world(taubin_world);
+                    std::vector<Vec3> t = y;
+                    (void)taubin_smooth(t, topo, {}, TaubinParams{.iterations = k}, progress);
+                    taubin_world.resize(nv);
+                    for (std::size_t v = 0; v < nv; ++v) taubin_world[v] = frame.to_world(t[so.order[v]]);
                     chosen = &taubin_world;
                 }
             }
