@@ -142,8 +142,8 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 /// the sums are taken in the second half step, in double (BM_feature_bilateral/3/3: 1.8 s →
 /// 0.7 s for 201 pairs). The returned mesh is recomputed by taubin_smooth in double.
 /// Deterministic: per-vertex arithmetic, sums folded in fixed chunks (parallel_reduce).
-/// The probes are drawn vertex by vertex in `draw_order` (every vertex once; empty: index
-/// order), so that a caller holding the vertices in an order of its own can keep the draws of
+/// The probes are drawn vertex by vertex in `draw_order` (a permutation of the vertices; empty:
+/// index order), so that a caller holding the vertices in an order of its own can keep the draws of
 /// the user's order (select_by_risk).
 /// @pre `active` holds every vertex with a neighbour (so it is closed under neighbours) and
 ///      counted[v] != 0 only for v in `active`: taubin_risk_curves builds them so.
@@ -154,6 +154,9 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
                                          const TaubinParams& params, Progress& progress,
                                          const std::vector<Index>& draw_order) {
     constexpr std::size_t stride = 3 + probes;  // x, y, z, then the probes
+    if (!draw_order.empty() && draw_order.size() != y.size())
+        throw invalid_input("kintsugi::detail::taubin_risk_curves: draw_order has " + std::to_string(draw_order.size()) +
+                            " entries for " + std::to_string(y.size()) + " vertices");
     const std::size_t m = active.size();
     TaubinRiskCurves out;
     // Local numbering: the moving vertices along a Morton curve. A neighbour of a moving vertex

@@ -172,7 +172,8 @@
 /// detail::taubin_risk_curves); the filters' risk is the same estimate with their divergence
 /// measured by Monte-Carlo SURE (S. Ramani, T. Blu, M. Unser, "Monte-Carlo SURE: a black-box
 /// optimization of regularization parameters for general denoising algorithms", IEEE TIP
-/// 2008): one more run, with the values and sharp edges of the first, on the input moved by
+/// 2008): one more run, with the values, sharp edges, mean edge length and filter-3 neighbour
+/// sets of the first (its discrete choices; detail::fbs::RunReuse), on the input moved by
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. The cost is a second run of the filters
@@ -350,7 +351,9 @@ struct FeatureBilateralResult {
     /// "topology", "coplanar creases" (features and SharpFeatureParams::coplanar_creases),
     /// "noise level" (when estimated), "low-pass" (when a step runs), "features",
     /// "edge smoothing", "face smoothing", "edge straightening" (EdgeVertexMotion::straighten
-    /// with sharp edges found)
+    /// with sharp edges found); with risk_selection also "risk: perturbed run" (the whole second
+    /// run and its bookkeeping), inside it "risk: perturbed <stage>" for each of that run's stages
+    /// (not to be added again), and "risk: Taubin sweep" (with the kept Taubin result, if any)
     std::vector<StageTiming> timings;
     /// Faces repeating an earlier face (same corners, same cyclic order): smoothed as one.
     std::size_t duplicate_faces = 0;
@@ -751,8 +754,9 @@ struct RunReuse {
 
 /// smooth_feature_bilateral without the risk selection; with `given_edges`, those sharp edges
 /// (input indices) instead of the coplanar stage and the detection. With `reuse` (unfilled),
-/// the run leaves its state there; with `reuse` filled, it starts from that state (the mesh
-/// must have the first run's connectivity: select_by_risk's perturbed input).
+/// the run leaves its state there; with `reuse` filled, it starts from that state and reads only
+/// the mesh's positions (in the first run's vertex order; its faces are taken as the first
+/// run's: select_by_risk's perturbed input).
 template <MutableTriangleMesh M>
 FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
                                   const std::vector<std::array<Index, 2>>* given_edges, RunReuse* reuse = nullptr);
@@ -1108,10 +1112,14 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 // tuned shapes).
                 result.risk.taubin = risk_filters > 0 && risk_taubin < risk_ratio * risk_filters;
                 if (result.risk.taubin) {
-                    std::vector<Vec3> t = y;
-                    (void)taubin_smooth(t, topo, {}, TaubinParams{.iterations = k}, progress);
-                    taubin_world.resize(nv);
-                    for (std::size_t v = 0; v < nv; ++v) taubin_world[v] = frame.to_world(t[so.order[v]]);
+                    // In the input's order, on the input's faces: smooth_taubin's result bit for bit
+                    // (the internal order sums each one-ring in another order: ~1e-9|e| apart 1e6 from
+                    // the origin).
+                    taubin_world = input.vertices;
+                    frame.to_local(taubin_world);
+                    (void)taubin_smooth(taubin_world, MeshTopology(nv, input.faces), {}, TaubinParams{.iterations = k},
+                                        progress);
+                    frame.to_world(taubin_world);
                     chosen = &taubin_world;
                 }
             }

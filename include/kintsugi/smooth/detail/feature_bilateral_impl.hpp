@@ -577,8 +577,9 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 
 /// Filters 3) and 4): face normals, then vertices (all vertices, or those not on a
 /// sharp edge when `fixed` marks them). One call = one iteration. With `keep_sets`
-/// (iterations after the first of a stage) filter 3 keeps the neighbour sets of that
-/// first iteration (see "Neighbour sets per stage" in feature_bilateral.hpp).
+/// (iterations after the first of a stage, and every iteration of select_by_risk's perturbed
+/// run) filter 3 keeps the neighbour sets in `ws` (those of the stage's first iteration) when
+/// they are of the same faces and scale (see "Neighbour sets per stage" in feature_bilateral.hpp).
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
                            const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
                            Progress& progress, double from, double to, Workspace& ws,
