@@ -68,6 +68,11 @@
 //   build before, 3 processes each: first call 5.41-5.57 s against 5.95-6.98 s, later calls
 //   4.13-4.31 s against 4.35-4.63 s (perturbed run 0.86-0.93 s against 1.01-1.37 s); with the
 //   defaults in the same hour (4.26-4.43 / 3.07-3.70 s): 1.3-1.6x.
+// 2026-12-06, later: main() calls use_huge_page_malloc, as the CLI (KINTSUGI_NO_HUGE_PAGES=1 for
+//   the default allocator). Back to back, 3 calls per process: defaults 4.24 / 4.42 s first,
+//   2.76-2.85 s later, against 4.61 / 4.73 s and 3.18-3.43 s; risk selection 5.20 / 3.50-3.54 s
+//   against 5.50 / 4.05-4.33 s (in a slow phase minutes before: 7.05 / 5.26-5.52 against
+//   7.68 / 5.95 s). Peak growth unchanged: 633 MB against 642 MB at 590K faces.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
@@ -75,6 +80,7 @@
 #include "../tests/smooth/smooth_support.hpp"
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
+#include <kintsugi/core/memory.hpp>
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/taubin.hpp>
@@ -216,6 +222,7 @@ void BM_feature_bilateral(benchmark::State& state) {
         state.counters["risk_taubin_steps"] = static_cast<double>(r.risk.taubin_iterations);
     }
     state.counters["cpu_s(all threads)"] = cpu;
+    state.counters["huge_page_malloc"] = ks::huge_page_malloc_on() ? 1 : 0;
     for (const auto& t : r.timings) state.counters[t.stage + " s"] = t.seconds;
 }
 BENCHMARK(BM_feature_bilateral)->Args({3, 1})->Args({3, 0})->Args({3, 2})->Args({3, 3})->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
@@ -363,7 +370,13 @@ BENCHMARK(BM_noise_table)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime(
 }  // namespace
 
 int main(int argc, char** argv) {
+    // glibc's allocator on huge pages, as the kintsugi CLI runs (KINTSUGI_NO_HUGE_PAGES=1:
+    // the library's default, as a program that does not call it gets; both are in the README).
+    ks::use_huge_page_malloc(argv);
     return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
+        std::printf("\nAllocator: %s\n", !ks::huge_page_malloc_on() ? "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)"
+                                            : ks::detail::heap_kept() ? "glibc on huge pages, freed memory kept (use_huge_page_malloc)"
+                                                                      : "glibc on huge pages (GLIBC_TUNABLES set by the caller)");
         std::printf("\n589,824 faces, same run (wall clock):\n");
         r.print_ratio("BM_feature_bilateral/3/1", "BM_taubin", "s");
         r.print_ratio("BM_feature_bilateral/3/1", "BM_feature_bilateral/3/0", "s");
