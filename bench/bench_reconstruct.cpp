@@ -540,9 +540,7 @@ void print_summary() {
         std::getline(la, l);
         std::printf("Load average at the end: %s (2 cores shared: wall times grow with the load, CPU times much less)\n",
                     l.c_str());
-        std::printf("Allocator: %s\n", !ks::huge_page_malloc_on() ? "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)"
-                                        : ks::detail::heap_kept() ? "glibc on huge pages, freed memory kept (use_huge_page_malloc)"
-                                                                  : "glibc on huge pages (GLIBC_TUNABLES set by the caller)");
+        std::printf("Allocator: %s\n", ks::bench::allocator_description());
     }
     auto cell = [](const Outcome* o, double v, const char* fmt) {
         char buf[64];

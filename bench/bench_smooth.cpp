@@ -374,9 +374,7 @@ int main(int argc, char** argv) {
     // the library's default, as a program that does not call it gets; both are in the README).
     ks::use_huge_page_malloc(argv);
     return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter& r) {
-        std::printf("\nAllocator: %s\n", !ks::huge_page_malloc_on() ? "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)"
-                                            : ks::detail::heap_kept() ? "glibc on huge pages, freed memory kept (use_huge_page_malloc)"
-                                                                      : "glibc on huge pages (GLIBC_TUNABLES set by the caller)");
+        std::printf("\nAllocator: %s\n", ks::bench::allocator_description());
         std::printf("\n589,824 faces, same run (wall clock):\n");
         r.print_ratio("BM_feature_bilateral/3/1", "BM_taubin", "s");
         r.print_ratio("BM_feature_bilateral/3/1", "BM_feature_bilateral/3/0", "s");

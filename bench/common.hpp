@@ -17,6 +17,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include <kintsugi/core/memory.hpp>
+
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -27,6 +29,13 @@
 #include <vector>
 
 namespace kintsugi::bench {
+
+/// Which allocator this run uses, for a summary (benchmarks that call use_huge_page_malloc).
+inline const char* allocator_description() {
+    return !huge_page_malloc_on()   ? "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)"
+           : detail::heap_kept()    ? "glibc on huge pages, freed memory kept (use_huge_page_malloc)"
+                                    : "glibc on huge pages (GLIBC_TUNABLES set by the caller)";
+}
 
 /// Peak resident set size of this process so far (VmHWM), in MB; 0 when unknown.
 inline double peak_rss_mb() {

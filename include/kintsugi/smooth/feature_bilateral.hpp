@@ -875,7 +875,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
             result.lowpass_iterations =
                 fbs::lowpass(m.vertices, m.faces, topo, params.lowpass_iterations, params.lowpass_noise,
                              result.noise_after_lowpass, params.control, progress, hold);
-            L = fbs::checked_mean_edge(fn, m.vertices, topo);
+            if (!reused) L = fbs::checked_mean_edge(fn, m.vertices, topo);
         }
         if (reused) L = reuse->L;  // as the first run's (the scale of filter 3's kept sets)
         else if (reuse) reuse->L = L;
