@@ -579,7 +579,9 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 /// sharp edge when `fixed` marks them). One call = one iteration. With `keep_sets`
 /// (iterations after the first of a stage, and every iteration of select_by_risk's perturbed
 /// run) filter 3 keeps the neighbour sets in `ws` (those of the stage's first iteration) when
-/// they are of the same faces and scale (see "Neighbour sets per stage" in feature_bilateral.hpp).
+/// they are of the same faces and scale (see "Neighbour sets per stage" in feature_bilateral.hpp);
+/// with `keep_vertex_sets` as well, filter 4 keeps the sets in `ws` (when of the same vertices
+/// and scale) and nothing is gathered.
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
                            const std::vector<unsigned char>& has_face, Scalar L, const FilterSettings& st,
                            Progress& progress, double from, double to, Workspace& ws,
@@ -594,9 +596,10 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     keep_vertex_sets = keep_sets && keep_vertex_sets && ws.vertex_lists.items == nv && ws.vertex_lists.scale == h;
     UniformGrid& grid = ws.grid;
     if (!keep_vertex_sets) grid.build(g.centroid, st.c * L, has_area(g.area));
-    // Faces and vertices whose cube may hold a sharp-edge vertex walk over the faces.
+    // Faces and vertices whose cube may hold a sharp-edge vertex walk over the faces (only
+    // when gathering: kept sets already left out what is behind a sharp edge).
     std::vector<unsigned char> near_face, near_vertex;
-    if (barriers && !barriers->active()) barriers = nullptr;
+    if (barriers && (!barriers->active() || (keep_sets && keep_vertex_sets))) barriers = nullptr;
     if (barriers) {
         const Scalar reach = st.c * L + 2 * L;
         std::vector<Vec3> points(barriers->feature_vertices.size());
