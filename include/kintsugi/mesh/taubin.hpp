@@ -131,11 +131,13 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 /// (E zᵀS_k z and E |S_k z|²) over fixed-seed Rademacher vectors smoothed beside the
 /// positions, the power of two from 2 to 16 that brings probes × moved vertices to 2^17 or more
 /// (the estimate's relative error falls as 1/√(probes·tr S_k); with two, small meshes' least-risk
-/// counts moved by a quarter). Stops at max_steps, or once k exceeds twice the least-risk count
-/// for `sigma` plus 30: the least-risk count grows with σ (the σ-dependent term 2σ² tr S_k
-/// favours smaller traces, i.e. more steps, as σ grows), so the counts of every σ up to
-/// `sigma` lie within the sweep once its risk has risen well past its minimum. Pass the
-/// largest σ of interest (select_by_risk: its acceptance limit, 1.1 times the estimate).
+/// counts moved by a quarter). Stops at max_steps, or once k exceeds the least-risk count for
+/// `sigma` by half of it, and by at least 20: the least-risk count grows with σ (the
+/// σ-dependent term 2σ² tr S_k favours smaller traces, i.e. more steps, as σ grows), so the
+/// counts of every σ up to `sigma` lie within the sweep once its risk has risen well past its
+/// minimum. Pass the largest σ of interest (select_by_risk: its acceptance limit, 1.1 times the
+/// estimate). The stop was at twice the count plus 30 until 2026-12-06: the same count and
+/// choice in all 54 noise-table cells, a third fewer pairs (docs/methods/feature_bilateral.md).
 /// The sweep is memory-bound: the moving vertices are renumbered along a Morton curve, each
 /// one's position and probe values kept together in single precision (half the traffic; the
 /// curves move by about 1e-6 relative, the counts not at all on the bench's 295K vertices) and
@@ -265,7 +267,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
         state.swap(next);
         record(sums);
         if (taubin_risk(out, k, sigma) < taubin_risk(out, best, sigma)) best = k;
-        if (k > 2 * best + 30) break;
+        if (k > best + std::max<std::size_t>(20, best / 2)) break;
     }
     return out;
 }
