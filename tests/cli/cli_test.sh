@@ -263,8 +263,14 @@ expect 0 "smooth --risk-selection (noisy bunny)" -- "$bin" smooth "$work/noisy_b
 json_check "smooth: risk selection keeps Taubin's result on the noisy bunny" "j['parameters']['risk_selection'] is True and j['risk_selection']['evaluated'] is True and j['risk_selection']['result']=='taubin' and j['risk_selection']['taubin_iterations']>0 and 0<j['risk_selection']['taubin_rms']**2<0.75*j['risk_selection']['filters_rms']**2 and 0<j['risk_selection']['sigma']<=1.1*j['noise']['sigma'] and j['risk_selection']['note']=='' and 'risk: Taubin sweep' in j['timings']"
 expect 0 "smooth --risk-selection (clean bunny)" -- "$bin" smooth "$mesh" "$work/sm_risk2.off" --risk-selection --json
 json_check "smooth: risk selection not compared on the clean bunny (held vertices)" "j['risk_selection']['evaluated'] is False and j['risk_selection']['result']=='filters' and 'held' in j['risk_selection']['note'] and j['held_vertices']>0"
-expect 0 "smooth without --risk-selection" -- "$bin" smooth "$mesh" "$work/sm_norisk.off" --json
-json_check "smooth: no risk selection by default" "j['parameters']['risk_selection'] is False and 'risk_selection' not in j"
+expect 0 "smooth (noisy bunny, defaults)" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_risk3.off" --json
+json_check "smooth: the risk selection runs by default" "j['parameters']['risk_selection'] is True and j['risk_selection']['result']=='taubin'"
+if cmp -s "$work/sm_risk.off" "$work/sm_risk3.off"; then ok; else bad "smooth: defaults and --risk-selection wrote different meshes"; fi
+expect 0 "smooth --no-risk-selection" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_norisk.off" --no-risk-selection --json
+json_check "smooth: --no-risk-selection keeps the filters" "j['parameters']['risk_selection'] is False and 'risk_selection' not in j"
+if cmp -s "$work/sm_risk.off" "$work/sm_norisk.off"; then bad "smooth: --no-risk-selection wrote Taubin's result"; else ok; fi
+expect 2 "smooth --risk-selection --no-risk-selection" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_both.off" --risk-selection --no-risk-selection
+if [ -e "$work/sm_both.off" ]; then bad "smooth: contradictory risk flags wrote a file"; else ok; fi
 
 # ---- output paths: symbolic links and devices written through, long names
 mkdir -p "$work/real"

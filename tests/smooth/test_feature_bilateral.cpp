@@ -252,8 +252,12 @@ TEST_CASE_TEMPLATE("smooth_feature_bilateral denoises a noisy box on every mesh 
     CHECK(r.vertices == clean.vertices.size());
     CHECK(r.faces == clean.faces.size());
     CHECK(r.feature_vertices > 0);
-    // topology, coplanar creases, noise level, features, edge and face smoothing, straightening
-    CHECK(r.timings.size() == 7);
+    // topology, coplanar creases, noise level, features, edge and face smoothing, straightening;
+    // then the risk selection's perturbed run (its stages nested) and the Taubin sweep.
+    CHECK(std::count_if(r.timings.begin(), r.timings.end(), [](const auto& t) { return !t.stage.starts_with("risk: "); }) == 7);
+    CHECK(r.timings.back().stage == "risk: Taubin sweep");
+    CHECK(r.risk.evaluated);
+    CHECK_FALSE(r.risk.taubin);  // a box: the filters' result
     const auto out = h.get();
     REQUIRE(all_finite(out));
     const auto before = ks::denoise_metrics(noisy, clean);
@@ -282,8 +286,9 @@ TEST_CASE("features = false runs the same filters without feature handling") {
     CHECK(ro.features.sharp_edges.empty());
     CHECK(ro.feature_vertices == 0);
     CHECK(rw.feature_vertices > 0);
-    // topology, noise level, low-pass (when a step runs), face smoothing
-    CHECK(ro.timings.size() == (ro.lowpass_iterations > 0 ? 4u : 3u));
+    // topology, noise level, low-pass (when a step runs), face smoothing; then the risk selection's
+    CHECK(std::count_if(ro.timings.begin(), ro.timings.end(), [](const auto& t) { return !t.stage.starts_with("risk: "); }) ==
+          (ro.lowpass_iterations > 0 ? 4 : 3));
     CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
           ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
     CHECK(with.vertices != without.vertices);
@@ -460,17 +465,36 @@ TEST_CASE("cancellation leaves the mesh untouched") {
         CHECK(calls == 8);
     }
     SUBCASE("through a stop token, late in the run") {
-        auto m = noisy;
-        std::stop_source stop;
-        ks::FeatureBilateralParams p;
-        p.control.stop = stop.get_token();
-        p.control.progress = [&](const ks::ProgressEvent& e) {
-            if (std::string(e.stage) == "face smoothing" && e.fraction > 0.8) stop.request_stop();
-            return true;
+        // Without the risk selection: in the face smoothing; with it (the default): in the
+        // perturbed run's face smoothing (reported at 0.4-0.8 of the whole) and in the Taubin
+        // sweep, the last stage.
+        struct At {
+            std::string stage;
+            double after;
+            bool risk;
         };
-        const auto r = ks::smooth_feature_bilateral(m, p);
-        CHECK(r.status == ks::Status::cancelled);
-        CHECK(m.vertices == noisy.vertices);
+        for (const At& at : {At{"face smoothing", 0.8, false}, At{"face smoothing", 0.6, true},
+                             At{"risk: Taubin sweep", 0.0, true}}) {
+            auto m = noisy;
+            std::stop_source stop;
+            ks::FeatureBilateralParams p;
+            p.risk_selection = at.risk;
+            p.control.stop = stop.get_token();
+            bool seen = false;
+            p.control.progress = [&](const ks::ProgressEvent& e) {
+                if (std::string(e.stage) == at.stage && e.fraction > at.after) {
+                    seen = true;
+                    stop.request_stop();
+                }
+                return true;
+            };
+            const auto r = ks::smooth_feature_bilateral(m, p);
+            CAPTURE(at.stage);
+            CAPTURE(at.after);
+            CHECK(seen);
+            CHECK(r.status == ks::Status::cancelled);
+            CHECK(m.vertices == noisy.vertices);
+        }
     }
     SUBCASE("progress stays in order when the low-pass runs") {
         auto m = ss::add_normal_noise(ss::box_mesh(10), 0.08);  // about 0.46|e|: low-pass steps run
@@ -1035,10 +1059,12 @@ TEST_CASE("strong noise (0.7|e|), low-pass off: more normal passes and a stronge
         const bool block = std::string(name) == "block";
         const auto [clean, noisy, L, taubin] = strong_noise_shape(block);
         auto ours = noisy, without = noisy;
-        const auto r = ks::smooth_feature_bilateral(ours, {.lowpass_noise = 0});
+        // The filters alone (risk_selection off): the rule is theirs.
+        const auto r = ks::smooth_feature_bilateral(ours, {.lowpass_noise = 0, .risk_selection = false});
         REQUIRE(r.strong_noise);
         CHECK(r.normal_iterations == 20);
-        const auto rw = ks::smooth_feature_bilateral(without, {.d = r.d, .face_iterations = r.face_iterations});
+        const auto rw = ks::smooth_feature_bilateral(without, {.d = r.d, .face_iterations = r.face_iterations,
+                                                               .risk_selection = false});
         CHECK_FALSE(rw.strong_noise);
         CHECK(rw.normal_iterations == 10);
         const double e_ours = ks::denoise_metrics(ours, clean).mean_normal_angle_deg;
@@ -1051,7 +1077,7 @@ TEST_CASE("strong noise (0.7|e|), low-pass off: more normal passes and a stronge
             auto one = noisy;
             {
                 ks::ThreadLimit limit(1);
-                (void)ks::smooth_feature_bilateral(one, {.lowpass_noise = 0});
+                (void)ks::smooth_feature_bilateral(one, {.lowpass_noise = 0, .risk_selection = false});
             }
             CHECK(one.vertices == ours.vertices);
         }
@@ -1068,8 +1094,12 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
         const bool block = std::string(name) == "block";
         const auto [clean, noisy, L, taubin] = strong_noise_shape(block);
         auto ours = noisy, off = noisy;
+        // The defaults (with the risk selection: the filters' result on both shapes) against the
+        // filters alone without the low-pass.
         const auto r = ks::smooth_feature_bilateral(ours);
-        (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0});
+        (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0, .risk_selection = false});
+        CHECK(r.risk.evaluated);
+        CHECK_FALSE(r.risk.taubin);
         CHECK(r.lowpass_iterations >= 3);
         CHECK(r.lowpass_iterations <= 8);
         CHECK(r.noise.sigma == doctest::Approx(0.7 * L).epsilon(0.25));  // the input's noise, reported
@@ -1295,7 +1325,7 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
         for (std::size_t v = 0; v < out.vertices.size(); ++v)
             REQUIRE((out.vertices[v] - taubin.vertices[v]).norm() < 1e-12 * L);
         auto filters = noisy;
-        (void)ks::smooth_feature_bilateral(filters);
+        (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
         double best = 1e9;
         for (std::size_t it : {10u, 20u, 50u}) {
             auto t = noisy;
@@ -1322,7 +1352,7 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
         MESSAGE("box 0.3|e|: estimated rms " << r.risk.taubin_rms << " (Taubin, " << r.risk.taubin_iterations
                                               << " steps) vs " << r.risk.filters_rms << " (filters)");
         auto reference = noisy;
-        (void)ks::smooth_feature_bilateral(reference);
+        (void)ks::smooth_feature_bilateral(reference, {.risk_selection = false});
         const auto out = h.get();
         for (std::size_t v = 0; v < out.vertices.size(); ++v)
             REQUIRE((out.vertices[v] - reference.vertices[v]).norm() < 1e-12);
