@@ -74,7 +74,8 @@
 //   against 5.50 / 4.05-4.33 s (in a slow phase minutes before: 7.05 / 5.26-5.52 against
 //   7.68 / 5.95 s). Peak growth unchanged: 633 MB against 642 MB at 590K faces.
 // 2026-12-06, stop 50 (risk selection by default: 3/1 runs it, 3/3 is the filters alone; its
-//   perturbed run keeps filter 4's sets, its sweep stops at 1.5x the least-risk count): the
+//   perturbed run keeps filter 4's sets, its sweep stops at 1.5x the least-risk count, at least
+//   20 pairs past it): the
 //   defaults 4.37 / 3.25 s first call, 2.98-3.08 s later; the filters alone 2.36 / 2.46 s,
 //   2.28-2.32 s; the build before, with risk selection, 4.76 / 3.66 s, 3.41-3.53 s.
 #include <benchmark/benchmark.h>

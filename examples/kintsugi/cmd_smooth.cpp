@@ -1,9 +1,9 @@
 // This Source Code Form is subject to the terms of the Mozilla Public
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
-// `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T]
+// `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T] [--voting-cube 3]
 // [--edge-iterations N] [--face-iterations N] [--no-features] [--no-coplanar-creases] [--features FEATURES.ply]
-// [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N] [--no-risk-selection]`:
+// [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N] [--risk-selection | --no-risk-selection]`:
 // feature-aware bilateral smoothing (a Taubin low-pass first under strong noise; Taubin's result
 // instead where its estimated error is clearly lower, unless --no-risk-selection); the
 // sharp edges can be written as PLY polylines. `--preset paper` starts from the paper's published
@@ -23,7 +23,7 @@ struct SmoothOptions {
     kintsugi::FeatureBilateralParams params;
     bool no_features = false;
     bool no_coplanar = false;
-    bool risk_selection = false;     // --risk-selection: on with the paper preset too
+    bool risk_selection = false;     // --risk-selection: the default; kept for older command lines
     bool no_risk_selection = false;  // --no-risk-selection: the filters' result always
     // --d and --face-iterations: given, or left to the noise estimate (unset optionals).
     double d = 0;
@@ -88,7 +88,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                  "result is otherwise kept where its estimated error along the normals is clearly lower (smooth "
                  "organic shapes; the sharp edges reported stay the filters'); about 0.75x the time");
     cmd.add_flag("--risk-selection", o->risk_selection,
-                 "The risk selection (on by default; off in the paper preset unless given)");
+                 "The risk selection: the default, accepted so that older command lines keep working (with "
+                 "--preset paper, which gives d and the face iterations, nothing is estimated to compare with)");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
         if (o->risk_selection && o->no_risk_selection)

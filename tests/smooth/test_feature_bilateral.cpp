@@ -370,6 +370,8 @@ TEST_CASE("the paper preset: the published parameters and detection, and the dep
     CHECK(paper.detection.prefilter_iterations == 0);
     CHECK(paper.detection.presmooth_iterations == 0);
     CHECK_FALSE(paper.detection.crease_test);
+    CHECK_FALSE(paper.risk_selection);  // the paper has no such step
+    CHECK(defaults.risk_selection);
     CHECK_FALSE(paper.separate_features);
     CHECK(paper.edge_vertex_motion == ks::EdgeVertexMotion::free);
     // The defaults depart from it (c, d from the noise, passes, detection, barriers).
@@ -970,9 +972,9 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         twelve.normals.clear();
         const double L = ks::mean_edge_length(twelve);
         const auto light = ss::add_gaussian_noise(twelve, 0.1 * L, true, 11);
-        auto ours = light, ten = light;
-        const auto r = ks::smooth_feature_bilateral(ours);
-        const auto r10 = ks::smooth_feature_bilateral(ten, {.normal_iterations = 10});
+        auto ours = light, ten = light;  // the filters' rule: without the risk selection
+        const auto r = ks::smooth_feature_bilateral(ours, {.risk_selection = false});
+        const auto r10 = ks::smooth_feature_bilateral(ten, {.normal_iterations = 10, .risk_selection = false});
         CHECK(r.noise.relative < 0.2);
         CHECK(r.normal_iterations == 3);
         CHECK(r10.normal_iterations == 10);
@@ -1007,10 +1009,11 @@ TEST_CASE("smooth_feature_bilateral: d and face_iterations from the estimated no
         // settings the strong-noise rule raised (low-pass off) or the low-pass steps included.
         for (const double lowpass : {0.0, 0.2}) {
             auto c = noisy, e = noisy;
-            const auto rc = ks::smooth_feature_bilateral(c, {.lowpass_noise = lowpass});
+            // (The filters alone: with the values given there is no estimate to select with.)
+            const auto rc = ks::smooth_feature_bilateral(c, {.lowpass_noise = lowpass, .risk_selection = false});
             ks::FeatureBilateralParams same{.d = rc.d, .detection = rc.detection, .face_iterations = rc.face_iterations,
                                             .normal_iterations = rc.normal_iterations,
-                                            .lowpass_iterations = rc.lowpass_iterations};
+                                            .lowpass_iterations = rc.lowpass_iterations, .risk_selection = false};
             if (lowpass == 0) {
                 CHECK(rc.strong_noise);
                 CHECK(rc.normal_iterations == 20);
@@ -1119,7 +1122,7 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
         CHECK(r.face_iterations == static_cast<std::size_t>(std::lround(1 + 7 * r.noise.relative)));
         CHECK(r.face_iterations >= 5);
         auto three = noisy;
-        const auto r3 = ks::smooth_feature_bilateral(three, {.face_iterations = 3});
+        const auto r3 = ks::smooth_feature_bilateral(three, {.face_iterations = 3, .risk_selection = false});
         CHECK(r3.lowpass_iterations == r.lowpass_iterations);
         CHECK(r3.d == r.d);
         const double e3 = ks::denoise_metrics(three, clean).mean_normal_angle_deg;
@@ -1133,8 +1136,9 @@ TEST_CASE("strong noise: a Taubin low-pass first brings it to ~0.2|e|, then the 
         for (const double k : {0.1, 0.15}) {
             const auto noisy = ss::add_gaussian_noise(clean, k * ks::mean_edge_length(clean), true, 5);
             auto a = noisy, b = noisy;
-            const auto ra = ks::smooth_feature_bilateral(a);
-            const auto rb = ks::smooth_feature_bilateral(b, {.face_iterations = ra.face_iterations, .lowpass_iterations = 0});
+            const auto ra = ks::smooth_feature_bilateral(a, {.risk_selection = false});
+            const auto rb = ks::smooth_feature_bilateral(b, {.face_iterations = ra.face_iterations, .lowpass_iterations = 0,
+                                                             .risk_selection = false});
             CHECK(ra.lowpass_iterations == 0);
             CHECK(ra.noise_after_lowpass.sigma == ra.noise.sigma);
             CHECK(ra.face_iterations == static_cast<std::size_t>(std::lround(1 + 7 * ra.noise.relative)));
@@ -1359,6 +1363,38 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
     }
 }
 
+TEST_CASE("risk selection's second run on the first run's state: on the same input, the first run's result bit for bit") {
+    // RunReuse hands the perturbed run the first run's vertex order, topology, workspace, filter-3
+    // and filter-4 neighbour sets and edge length; given the same input, the values and the
+    // sharp edges the first run used, it must redo exactly the first run (0.7|e|: low-pass steps).
+    const auto clean = repo_bunny();
+    const double L = ks::mean_edge_length(clean);
+    for (const double k : {0.3, 0.7}) {
+        CAPTURE(k);
+        const auto noisy = ss::add_gaussian_noise(clean, k * L, true, 5);
+        ks::IndexedMesh first = noisy, second = noisy;
+        ks::detail::fbs::RunReuse reuse;
+        ks::FeatureBilateralParams p;
+        p.risk_selection = false;
+        const auto r = ks::detail::fbs::smooth_run(first, p, nullptr, &reuse);
+        REQUIRE(r.status == ks::Status::ok);
+        REQUIRE(reuse.filled);
+        CHECK(reuse.vertex_sets.size() == r.face_iterations);
+        CHECK(r.feature_vertices > 0);
+        if (k > 0.5) CHECK(r.lowpass_iterations > 0);
+        ks::FeatureBilateralParams fixed = p;
+        fixed.d = r.d;
+        fixed.face_iterations = r.face_iterations;
+        fixed.normal_iterations = r.normal_iterations;
+        fixed.lowpass_iterations = r.lowpass_iterations;
+        fixed.detection = r.detection;
+        const auto r2 = ks::detail::fbs::smooth_run(second, fixed, &r.features.sharp_edges, &reuse);
+        REQUIRE(r2.status == ks::Status::ok);
+        CHECK(second.vertices == first.vertices);
+        CHECK(first.vertices != noisy.vertices);
+    }
+}
+
 TEST_CASE("risk selection far from the origin, with a duplicate face: the same choice, smooth_taubin's result bit for bit") {
     // The selection works in its own vertex order and frame; the result it returns is computed in
     // the input's, so that it is exactly what smooth_taubin gives for the chosen count (summed in
@@ -1391,7 +1427,7 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
         const auto box = ss::add_impulsive_noise(ss::box_mesh(16), 0.5 * ks::mean_edge_length(ss::box_mesh(16)), 3, nullptr, 4);
         auto a = box, b = box;
         const auto r = ks::smooth_feature_bilateral(a, {.risk_selection = true});
-        (void)ks::smooth_feature_bilateral(b);
+        (void)ks::smooth_feature_bilateral(b, {.risk_selection = false});
         CHECK(r.held_vertices > 0);
         CHECK_FALSE(r.risk.evaluated);
         CHECK(r.risk.note.find("held") != std::string::npos);
@@ -1400,7 +1436,7 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
     SUBCASE("d and face_iterations given (no noise estimate): the filters' result, and why") {
         auto a = noisy, b = noisy;
         const auto r = ks::smooth_feature_bilateral(a, {.d = 0.2, .face_iterations = 2, .risk_selection = true});
-        (void)ks::smooth_feature_bilateral(b, {.d = 0.2, .face_iterations = 2});
+        (void)ks::smooth_feature_bilateral(b, {.d = 0.2, .face_iterations = 2, .risk_selection = false});
         CHECK_FALSE(r.risk.evaluated);
         CHECK(r.risk.note.find("not estimated") != std::string::npos);
         CHECK(a.vertices == b.vertices);
@@ -1409,7 +1445,7 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
         auto a = clean, b = clean;
         const auto r = ks::smooth_feature_bilateral(a, {.risk_selection = true});
         REQUIRE(r.status == ks::Status::ok);
-        (void)ks::smooth_feature_bilateral(b);
+        (void)ks::smooth_feature_bilateral(b, {.risk_selection = false});
         CHECK(ks::denoise_metrics(a, clean).vertex_rms <= ks::denoise_metrics(b, clean).vertex_rms * (1 + 1e-12));
     }
     SUBCASE("bad values throw invalid_input and leave the mesh untouched") {

@@ -178,9 +178,9 @@
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. The cost is a second run of the filters
-/// without the detection or any neighbour search, and up to 200 Taubin steps: 1.3× the time of
-/// the filters alone on 590K faces (3.0-3.1 s against 2.3-2.5 s). Measured in
-/// docs/methods/feature_bilateral.md ("Risk selection").
+/// without the detection or the face filters' neighbour searches, and up to 200 Taubin steps:
+/// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
+/// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
@@ -373,7 +373,8 @@ struct FeatureBilateralResult {
     /// the data").
     bool strong_noise = false;
     /// The detection settings used: params.detection, raised by the strong-noise rule
-    /// when it applied (passing them back with d and the iteration counts repeats the run).
+    /// when it applied (passing them back with d and the iteration counts repeats the filters'
+    /// run; when `risk.taubin`, the mesh returned is Taubin's, not that run's).
     SharpFeatureParams detection{};
     /// Taubin steps of the low-pass run before the filters (0 when none ran).
     std::size_t lowpass_iterations = 0;
@@ -747,8 +748,10 @@ inline FeatureData given_features(const std::vector<std::array<Index, 2>>& given
 /// buffers, and the mean edge length after the low-pass. Filters 3 and 4 keep the first run's
 /// neighbour sets of the face smoothing (filter 3 those of its first iteration, as in the first
 /// run; filter 4 those of each iteration): like the sharp edges, discrete choices the divergence
-/// (a derivative) must not see change. With the sets kept the perturbed run gathers nothing:
-/// 0.5-0.6 s instead of 0.9 s at 590K faces, for about 16 bytes per vertex and face iteration.
+/// (a derivative) must not see change. With the sets kept the perturbed run's face filters
+/// search no neighbourhood (filters 1-2 still do, over the few sharp edges): 0.5-0.6 s instead
+/// of 0.9 s at 590K faces, for 50-80 bytes per vertex and face iteration (12-19 faces each;
+/// kept only when the selection will compare: the noise estimated, no vertex held).
 struct RunReuse {
     bool filled = false;  ///< set by the first run; the second run then reads it
     SpatialOrder so;
@@ -957,7 +960,9 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
             if (kept_vertex_sets) std::swap(ws.vertex_lists, reuse->vertex_sets[it]);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
                                 static_cast<double>(it + 1) / n, ws, &barriers, it > 0 || reused, kept_vertex_sets);
-            if (reuse && !reused) reuse->vertex_sets.push_back(ws.vertex_lists);
+            // Kept for the perturbed run only where select_by_risk will compare (its skip conditions).
+            if (reuse && !reused && result.noise_estimated && result.held_vertices == 0)
+                reuse->vertex_sets.push_back(ws.vertex_lists);
         }
         if (!final_edges.empty()) {
             progress.stage("edge straightening", 0.98, 1.0);

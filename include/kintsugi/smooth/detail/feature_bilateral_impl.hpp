@@ -327,12 +327,13 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
             const Reach reached = reach_faces(*barriers, g.centroid, seed, g.centroid[t], h);
             n = 0;
             for (std::size_t k = 0; k < found.size(); ++k)
-                if (reached(found[k])) {
-                    found[n] = found[k];
-                    dist2[n++] = dist2[k];
-                }
+                if (reached(found[k])) found[n++] = found[k];
         }
-        for (std::size_t k = 0; k < n; ++k) weight[k] = static_cast<float>(g.area[found[k]] * spatial(dist2[k]));
+        // The distances again in double (the grid's are single precision), as the kept sets'
+        // weights are computed: a later run keeping these sets (select_by_risk's perturbed run)
+        // then computes exactly what this one did.
+        for (std::size_t k = 0; k < n; ++k)
+            weight[k] = static_cast<float>(g.area[found[k]] * spatial((g.centroid[found[k]] - g.centroid[t]).squaredNorm()));
         append(found.data(), weight.data(), n);
     });
     nb.items = nf;
@@ -579,7 +580,8 @@ inline void edge_iteration(std::vector<Vec3>& V, const std::vector<std::array<In
 /// sharp edge when `fixed` marks them). One call = one iteration. With `keep_sets`
 /// (iterations after the first of a stage, and every iteration of select_by_risk's perturbed
 /// run) filter 3 keeps the neighbour sets in `ws` (those of the stage's first iteration) when
-/// they are of the same faces and scale (see "Neighbour sets per stage" in feature_bilateral.hpp);
+/// they are of the same faces and scale (see "Neighbour sets per stage" in
+/// docs/methods/feature_bilateral.md);
 /// with `keep_vertex_sets` as well, filter 4 keeps the sets in `ws` (when of the same vertices
 /// and scale) and nothing is gathered.
 inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, const std::vector<unsigned char>& fixed,
@@ -593,13 +595,14 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     const Scalar s_f = (st.vertex_c > 0 ? st.vertex_c : st.c) * L, s_g = st.d * L;
     const Scalar h = s_f;  // the face cube has side 2σ_f
     keep_sets = keep_sets && ws.lists.items == F.size() && ws.lists.scale == st.c * L;
-    keep_vertex_sets = keep_sets && keep_vertex_sets && ws.vertex_lists.items == nv && ws.vertex_lists.scale == h;
+    keep_vertex_sets = keep_vertex_sets && ws.vertex_lists.items == nv && ws.vertex_lists.scale == h;
+    const bool filter3_gathers = !keep_sets && st.normal_iterations > 0;
     UniformGrid& grid = ws.grid;
-    if (!keep_vertex_sets) grid.build(g.centroid, st.c * L, has_area(g.area));
+    if (filter3_gathers || !keep_vertex_sets) grid.build(g.centroid, st.c * L, has_area(g.area));
     // Faces and vertices whose cube may hold a sharp-edge vertex walk over the faces (only
     // when gathering: kept sets already left out what is behind a sharp edge).
     std::vector<unsigned char> near_face, near_vertex;
-    if (barriers && (!barriers->active() || (keep_sets && keep_vertex_sets))) barriers = nullptr;
+    if (barriers && (!barriers->active() || (!filter3_gathers && keep_vertex_sets))) barriers = nullptr;
     if (barriers) {
         const Scalar reach = st.c * L + 2 * L;
         std::vector<Vec3> points(barriers->feature_vertices.size());
@@ -631,6 +634,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
     // cells the gather tests more points, which costs less than a grid of its own);
     // later passes keep them; the pre-smoothing (`keep_vertex_sets`) keeps them for
     // the whole stage, as filter 3 does, and then builds no grid after its first
+    // iteration; select_by_risk's perturbed run takes those of the first run's same
     // iteration. Keeping them for the whole face-smoothing stage too was 15 % faster
     // but moved Twelve0.5Impulsive from 7.99° to 8.10°.
     Neighbourhoods& around = ws.vertex_lists;
