@@ -209,6 +209,7 @@ BENCHMARK(BM_memory)->Arg(2)->Arg(3)->Unit(benchmark::kSecond)->Iterations(1)->U
 // input, 3 = defaults without the risk selection (the filters once).
 void BM_feature_bilateral(benchmark::State& state) {
     const auto& input = big_mesh(static_cast<int>(state.range(0)), state.range(1) == 2);
+    const bool risk = state.range(1) == 1 || state.range(1) == 2;
     ks::FeatureBilateralResult r;
     double cpu = 0;
     for (auto _ : state) {
@@ -216,15 +217,14 @@ void BM_feature_bilateral(benchmark::State& state) {
         ks::IndexedMesh m = input;
         state.ResumeTiming();
         const double c0 = process_cpu_s();
-        r = ks::smooth_feature_bilateral(m, {.features = state.range(1) != 0,
-                                             .risk_selection = state.range(1) == 1 || state.range(1) == 2});
+        r = ks::smooth_feature_bilateral(m, {.features = state.range(1) != 0, .risk_selection = risk});
         cpu = process_cpu_s() - c0;
         benchmark::DoNotOptimize(m.vertices.data());
     }
     state.counters["faces"] = static_cast<double>(input.faces.size());
     state.counters["sharp_edges"] = static_cast<double>(r.features.sharp_edges.size());
     state.counters["anchored_faces"] = static_cast<double>(r.features.anchored_faces);
-    if (state.range(1) == 1 || state.range(1) == 2) {
+    if (risk) {
         state.counters["risk_taubin_kept"] = r.risk.taubin ? 1 : 0;
         state.counters["risk_taubin_steps"] = static_cast<double>(r.risk.taubin_iterations);
     }

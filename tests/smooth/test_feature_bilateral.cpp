@@ -152,6 +152,12 @@ struct Holder<ss::SurfaceMesh> {
     ks::IndexedMesh get() const { return ks::to_indexed_mesh(m); }
 };
 
+// The run's own stages, without the risk selection's ("risk: ..." timings).
+std::size_t stages_outside_risk(const ks::FeatureBilateralResult& r) {
+    return static_cast<std::size_t>(std::count_if(r.timings.begin(), r.timings.end(),
+                                                  [](const auto& t) { return !t.stage.starts_with("risk: "); }));
+}
+
 std::filesystem::path test_data(const char* name) { return std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "smooth" / name; }
 
 }  // namespace
@@ -254,7 +260,7 @@ TEST_CASE_TEMPLATE("smooth_feature_bilateral denoises a noisy box on every mesh 
     CHECK(r.feature_vertices > 0);
     // topology, coplanar creases, noise level, features, edge and face smoothing, straightening;
     // then the risk selection's perturbed run (its stages nested) and the Taubin sweep.
-    CHECK(std::count_if(r.timings.begin(), r.timings.end(), [](const auto& t) { return !t.stage.starts_with("risk: "); }) == 7);
+    CHECK(stages_outside_risk(r) == 7u);
     CHECK(r.timings.back().stage == "risk: Taubin sweep");
     CHECK(r.risk.evaluated);
     CHECK_FALSE(r.risk.taubin);  // a box: the filters' result
@@ -287,8 +293,7 @@ TEST_CASE("features = false runs the same filters without feature handling") {
     CHECK(ro.feature_vertices == 0);
     CHECK(rw.feature_vertices > 0);
     // topology, noise level, low-pass (when a step runs), face smoothing; then the risk selection's
-    CHECK(std::count_if(ro.timings.begin(), ro.timings.end(), [](const auto& t) { return !t.stage.starts_with("risk: "); }) ==
-          (ro.lowpass_iterations > 0 ? 4 : 3));
+    CHECK(stages_outside_risk(ro) == (ro.lowpass_iterations > 0 ? 4u : 3u));
     CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
           ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
     CHECK(with.vertices != without.vertices);
@@ -1382,13 +1387,8 @@ TEST_CASE("risk selection's second run on the first run's state: on the same inp
         CHECK(reuse.vertex_sets.size() == r.face_iterations);
         CHECK(r.feature_vertices > 0);
         if (k > 0.5) CHECK(r.lowpass_iterations > 0);
-        ks::FeatureBilateralParams fixed = p;
-        fixed.d = r.d;
-        fixed.face_iterations = r.face_iterations;
-        fixed.normal_iterations = r.normal_iterations;
-        fixed.lowpass_iterations = r.lowpass_iterations;
-        fixed.detection = r.detection;
-        const auto r2 = ks::detail::fbs::smooth_run(second, fixed, &r.features.sharp_edges, &reuse);
+        const auto r2 = ks::detail::fbs::smooth_run(second, ks::detail::fbs::repeat_params(p, r), &r.features.sharp_edges,
+                                                    &reuse);
         REQUIRE(r2.status == ks::Status::ok);
         CHECK(second.vertices == first.vertices);
         CHECK(first.vertices != noisy.vertices);

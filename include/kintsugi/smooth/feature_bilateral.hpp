@@ -761,6 +761,28 @@ struct RunReuse {
     std::vector<Neighbourhoods> vertex_sets;  ///< filter 4's sets of each face iteration
 };
 
+/// Why select_by_risk cannot compare the two results of a run, or "" when it can: its
+/// estimates need the noise estimated, non-zero, and no vertex held (held vertices mean
+/// impulsive noise or exact planes, not the Gaussian-like noise the estimates assume).
+inline std::string risk_skip_reason(const FeatureBilateralResult& r) {
+    if (!r.noise_estimated) return "the noise was not estimated (d and face_iterations given)";
+    if (!(r.noise.sigma > 0)) return "the estimated noise is zero";
+    if (r.held_vertices > 0) return "vertices were held (anchored faces: impulsive noise or exact planes)";
+    return {};
+}
+
+/// The parameters of select_by_risk's perturbed run: `params` with the values the first run
+/// (`first`) chose, so that it runs the same filters without estimating anything.
+inline FeatureBilateralParams repeat_params(const FeatureBilateralParams& params, const FeatureBilateralResult& first) {
+    FeatureBilateralParams p = params;
+    p.d = first.d;
+    p.face_iterations = first.face_iterations;
+    p.normal_iterations = first.normal_iterations;
+    p.lowpass_iterations = first.lowpass_iterations;
+    p.detection = first.detection;
+    return p;
+}
+
 /// smooth_feature_bilateral without the risk selection; with `given_edges`, those sharp edges
 /// (input indices) instead of the coplanar stage and the detection. With `reuse` (unfilled),
 /// the run leaves its state there; with `reuse` filled, it starts from that state and reads only
@@ -953,6 +975,8 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
             if (given_edges) result.features.sharp_edges = *given_edges;  // no strengths to reorder with
         }
         progress.stage("face smoothing", params.features ? 0.5 : 0.1, final_edges.empty() ? 1.0 : 0.98);
+        // Filter 4's sets kept for the perturbed run only where select_by_risk will compare.
+        const bool keep_vertex_sets = reuse && !reused && fbs::risk_skip_reason(result).empty();
         for (std::size_t it = 0; it < face_iterations; ++it) {
             const double n = static_cast<double>(face_iterations);
             // The perturbed run takes filter 4's sets of the first run's same iteration.
@@ -960,9 +984,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
             if (kept_vertex_sets) std::swap(ws.vertex_lists, reuse->vertex_sets[it]);
             fbs::face_iteration(m.vertices, m.faces, fixed, has_face, L, fs, progress, static_cast<double>(it) / n,
                                 static_cast<double>(it + 1) / n, ws, &barriers, it > 0 || reused, kept_vertex_sets);
-            // Kept for the perturbed run only where select_by_risk will compare (its skip conditions).
-            if (reuse && !reused && result.noise_estimated && result.held_vertices == 0)
-                reuse->vertex_sets.push_back(ws.vertex_lists);
+            if (keep_vertex_sets) reuse->vertex_sets.push_back(ws.vertex_lists);
         }
         if (!final_edges.empty()) {
             progress.stage("edge straightening", 0.98, 1.0);
@@ -1020,12 +1042,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
     std::vector<Vec3> taubin_world;
     try {
         auto skip = [&](std::string why) { result.risk.note = std::move(why); };
-        if (!result.noise_estimated) {
-            skip("the noise was not estimated (d and face_iterations given)");
-        } else if (!(result.noise.sigma > 0)) {
-            skip("the estimated noise is zero");
-        } else if (result.held_vertices > 0) {
-            skip("vertices were held (anchored faces: impulsive noise or exact planes)");
+        if (std::string why = risk_skip_reason(result); !why.empty()) {
+            skip(std::move(why));
         } else {
             const auto t0 = std::chrono::steady_clock::now();
             // In the first run's vertex order and power-of-two frame (exact: any magnitude), on its
@@ -1046,12 +1064,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             // The filters' divergence along the normals: one run, with the values and the sharp
             // edges the first chose, on the input moved by eps·σ·z_v along n_v (z_v = ±1, fixed seed).
             constexpr Scalar eps = 0.1;
-            FeatureBilateralParams fixed = inner;
-            fixed.d = result.d;
-            fixed.face_iterations = result.face_iterations;
-            fixed.normal_iterations = result.normal_iterations;
-            fixed.lowpass_iterations = result.lowpass_iterations;
-            fixed.detection = result.detection;
+            FeatureBilateralParams fixed = repeat_params(inner, result);
             fixed.control = part_control(params.control, 0.4, 0.8, last);
             std::vector<Scalar> z(nv, 0);  // by input index: the draws do not depend on the order
             std::uint64_t state = 0xD1B54A32D192ED03ull;

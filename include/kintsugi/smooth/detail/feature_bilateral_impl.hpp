@@ -303,16 +303,18 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
     Neighbourhoods local;
     Neighbourhoods& nb = lists ? *lists : local;
     const GaussTable spatial(s_mf, 3 * h * h);
+    // a_q·f of neighbour q of face t, from the distance in double (the grid's are single
+    // precision): built and kept sets get the same weights, so a later run keeping these sets
+    // (select_by_risk's perturbed run) computes exactly what this one did.
+    auto spatial_weight = [&](std::size_t t, std::uint32_t q) {
+        return static_cast<float>(g.area[q] * spatial((g.centroid[q] - g.centroid[t]).squaredNorm()));
+    };
     if (keep_sets && lists && nb.items == nf && nb.scale == h) {  // same sets, weights from the positions now
         parallel_for(0, nb.parts.size(), [&](std::size_t c) {
             Neighbourhoods::Part& part = nb.parts[c];
-            for (std::size_t k = 0; k + 1 < part.offset.size(); ++k) {
-                const Vec3& ct = g.centroid[c * Neighbourhoods::chunk + k];
-                for (std::uint32_t j = part.offset[k]; j < part.offset[k + 1]; ++j) {
-                    const std::uint32_t q = part.index[j];
-                    part.weight[j] = static_cast<float>(g.area[q] * spatial((g.centroid[q] - ct).squaredNorm()));
-                }
-            }
+            for (std::size_t k = 0; k + 1 < part.offset.size(); ++k)
+                for (std::uint32_t j = part.offset[k]; j < part.offset[k + 1]; ++j)
+                    part.weight[j] = spatial_weight(c * Neighbourhoods::chunk + k, part.index[j]);
         }, 1);
     } else build_neighbourhoods(nf, nb, progress, from, q2, [&, cap = max_listed(nf)](std::size_t t, auto&& append) {
         if (g.area[t] == 0) return;
@@ -329,11 +331,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
             for (std::size_t k = 0; k < found.size(); ++k)
                 if (reached(found[k])) found[n++] = found[k];
         }
-        // The distances again in double (the grid's are single precision), as the kept sets'
-        // weights are computed: a later run keeping these sets (select_by_risk's perturbed run)
-        // then computes exactly what this one did.
-        for (std::size_t k = 0; k < n; ++k)
-            weight[k] = static_cast<float>(g.area[found[k]] * spatial((g.centroid[found[k]] - g.centroid[t]).squaredNorm()));
+        for (std::size_t k = 0; k < n; ++k) weight[k] = spatial_weight(t, found[k]);
         append(found.data(), weight.data(), n);
     });
     nb.items = nf;
