@@ -295,11 +295,12 @@ void accuracy_table() {
 // Gaussian along the normals with sigma = |e|), seed 11. Per cell: mean face-normal error
 // (deg) / vertex RMS (|e|) of the defaults (d and face iterations from the estimated
 // noise, the Taubin low-pass first under strong noise, and the risk selection; T: Taubin's result
-// kept, with its step count; F: the filters'; -: not compared), of the filters alone
-// (risk_selection = false), of those without the low-pass (lowpass_noise = 0), of the fixed
-// defaults before both (d = 0.14, 3 face iterations), of the paper's published parameters and
+// kept, with its step count; F: the filters'; -: not compared; I n: n vertices put back by the
+// impulse removal), of the filters alone (risk_selection = false), of those without the
+// low-pass (lowpass_noise = 0), of the defaults without the impulse removal
+// (impulse_removal = false), of the paper's published parameters and
 // detection (FeatureBilateralParams::paper()), and of the best Taubin (10/20/50 iterations, by
-// normal error) and of CGAL's smooth_shape (ss::best_smooth_shape); the estimated noise against the true
+// normal error) and of CGAL's smooth_shape (ss::best_smooth_shape); the input's estimated noise against the true
 // (rms of the displacements along the normals), both in clean |e|. The last three shapes
 // (CGAL's mech-holes-shark, armadillo, bunny00) were never used to choose a default; the
 // Stanford bunny (bun_zipper.ply, 69K faces, 5 open holes) and CGAL's elephant-with-holes
@@ -321,7 +322,7 @@ void BM_noise_table(benchmark::State& state) {
     for (auto _ : state) {
         std::printf("\nnoise table: normal error (deg) / vertex RMS (|e|); sigma estimated / true (|e|)\n");
         std::printf("%-17s %-6s %22s %15s %15s %15s %15s %19s %24s %13s\n", "shape", "noise", "defaults", "filters alone",
-                    "low-pass off", "d 0.14, 3 it.", "paper", "best Taubin", "best smooth_shape", "sigma est/true");
+                    "low-pass off", "impulses kept", "paper", "best Taubin", "best smooth_shape", "sigma est/true");
         for (const auto& [name, path] : shapes) {
             if (!fs::exists(path)) {
                 std::printf("%-17s skipped: %s not found\n", name, path.string().c_str());
@@ -340,11 +341,11 @@ void BM_noise_table(benchmark::State& state) {
                     std::snprintf(buf, sizeof buf, "%6.2f / %.3f", d.mean_normal_angle_deg, d.vertex_rms / L);
                     return std::string(buf);
                 };
-                auto ours = noisy, alone = noisy, off = noisy, fixed = noisy, paper = noisy;
+                auto ours = noisy, alone = noisy, off = noisy, kept = noisy, paper = noisy;
                 const auto r = ks::smooth_feature_bilateral(ours);
                 (void)ks::smooth_feature_bilateral(alone, {.risk_selection = false});
                 (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0, .risk_selection = false});
-                (void)ks::smooth_feature_bilateral(fixed, {.d = 0.14, .face_iterations = 3});
+                (void)ks::smooth_feature_bilateral(kept, {.impulse_removal = false});
                 (void)ks::smooth_feature_bilateral(paper, ks::FeatureBilateralParams::paper());
                 double bt = 1e9;
                 int bit = 0;
@@ -359,14 +360,15 @@ void BM_noise_table(benchmark::State& state) {
                 const auto shape = ss::best_smooth_shape(noisy, clean, &ss_setting);
                 char label[16], taubin[48], cgal[64], risk[64];
                 if (r.risk.taubin) std::snprintf(risk, sizeof risk, "%s (T %zu)", cell(ours).c_str(), r.risk.taubin_iterations);
+                else if (r.impulse_vertices > 0) std::snprintf(risk, sizeof risk, "%s (I %zu)", cell(ours).c_str(), r.impulse_vertices);
                 else std::snprintf(risk, sizeof risk, "%s (%s)", cell(ours).c_str(), r.risk.evaluated ? "F" : "-");
                 if (k > 0) std::snprintf(label, sizeof label, "%.1f", k);
                 else std::snprintf(label, sizeof label, "impuls");
                 std::snprintf(taubin, sizeof taubin, "%s (%d)", cell(best).c_str(), bit);
                 std::snprintf(cgal, sizeof cgal, "%s (%s)", cell(shape).c_str(), ss_setting.c_str());
                 std::printf("%-17s %-6s %22s %15s %15s %15s %15s %19s %24s %6.3f/%.3f   low-pass %zu, d %.3f, %zu it.\n", name,
-                            label, risk, cell(alone).c_str(), cell(off).c_str(), cell(fixed).c_str(), cell(paper).c_str(),
-                            taubin, cgal, r.noise.sigma / L, truth / L, r.lowpass_iterations, r.d, r.face_iterations);
+                            label, risk, cell(alone).c_str(), cell(off).c_str(), cell(kept).c_str(), cell(paper).c_str(),
+                            taubin, cgal, r.input_noise.sigma / L, truth / L, r.lowpass_iterations, r.d, r.face_iterations);
                 std::fflush(stdout);
             }
         }

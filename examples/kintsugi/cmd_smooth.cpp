@@ -3,8 +3,9 @@
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T] [--voting-cube 3]
 // [--edge-iterations N] [--face-iterations N] [--no-features] [--no-coplanar-creases] [--features FEATURES.ply]
-// [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N] [--risk-selection | --no-risk-selection]`:
-// feature-aware bilateral smoothing (a Taubin low-pass first under strong noise; Taubin's result
+// [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N] [--risk-selection | --no-risk-selection]
+// [--no-impulse-removal]`: feature-aware bilateral smoothing (vertices impulsive noise moved put
+// back first, unless --no-impulse-removal; a Taubin low-pass first under strong noise; Taubin's result
 // instead where its estimated error is clearly lower, unless --no-risk-selection); the
 // sharp edges can be written as PLY polylines. `--preset paper` starts from the paper's published
 // parameters and detection (FeatureBilateralParams::paper()); options given win.
@@ -25,6 +26,7 @@ struct SmoothOptions {
     bool no_coplanar = false;
     bool risk_selection = false;     // --risk-selection: the default; kept for older command lines
     bool no_risk_selection = false;  // --no-risk-selection: the filters' result always
+    bool no_impulse_removal = false; // --no-impulse-removal: the filters see impulsive noise as it is
     // --d and --face-iterations: given, or left to the noise estimate (unset optionals).
     double d = 0;
     std::size_t face_iterations = 0;
@@ -90,6 +92,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_flag("--risk-selection", o->risk_selection,
                  "The risk selection: the default, accepted so that older command lines keep working (with "
                  "--preset paper, which gives d and the face iterations, nothing is estimated to compare with)");
+    cmd.add_flag("--no-impulse-removal", o->no_impulse_removal,
+                 "Do not put back the vertices impulsive noise moved far off the surface (found only when the "
+                 "vertices' heights above their neighbours are heavy-tailed; the paper preset never does)");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
         if (o->risk_selection && o->no_risk_selection)
@@ -122,6 +127,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         if (o->lowpass_iterations_option->count() > 0) params.lowpass_iterations = o->lowpass_iterations;
         if (o->risk_selection) params.risk_selection = true;
         if (o->no_risk_selection) params.risk_selection = false;
+        if (o->no_impulse_removal) params.impulse_removal = false;
         params.control = ctx.control("smooth");
         ctx.doing("smoothing the " + kcli::grouped(mesh.faces.size()) + " faces of " + o->input);
         const kintsugi::FeatureBilateralResult r = kintsugi::smooth_feature_bilateral(mesh, params);
@@ -172,6 +178,17 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             j["noise"]["after_lowpass"]["sigma"] = r.noise_after_lowpass.sigma;
             j["noise"]["after_lowpass"]["relative"] = r.noise_after_lowpass.relative;
         }
+        j["parameters"]["impulse_removal"] = params.impulse_removal;
+        if (params.impulse_removal) {
+            auto& im = j["impulses"];
+            im["impulsive"] = r.impulsive_noise;
+            im["put_back"] = r.impulse_vertices;
+            im["dense"] = r.impulses_dense;
+            if (r.noise_estimated) {
+                im["input_noise"]["sigma"] = r.input_noise.sigma;
+                im["input_noise"]["relative"] = r.input_noise.relative;
+            }
+        }
         j["parameters"]["features"] = params.features;
         j["parameters"]["risk_selection"] = params.risk_selection;
         if (params.risk_selection) {
@@ -199,6 +216,10 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             how = r.risk.taubin ? ", Taubin's result kept (" + std::to_string(r.risk.taubin_iterations) + " steps; lower estimated error)"
                   : r.risk.evaluated ? ", the filters' result kept (lower estimated error)"
                                      : ", the filters' result kept (risks not compared: " + r.risk.note + ")";
+        if (r.impulse_vertices > 0)
+            how += "; " + std::to_string(r.impulse_vertices) + " vertices moved by impulsive noise put back";
+        else if (r.impulses_dense)
+            how += "; impulsive noise too dense to put back (more than a fifth of the vertices)";
         ctx.info("smoothed " + std::to_string(r.vertices) + " vertices, " + std::to_string(r.faces) + " faces (" +
                  std::to_string(r.features.sharp_edges.size()) + " sharp edges" + how + ") -> " + o->output +
                  (o->features.empty() ? "" : ", features -> " + o->features));

@@ -16,6 +16,7 @@
 #include <kintsugi/io/read.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/taubin.hpp>
+#include <kintsugi/mesh/impulses.hpp>
 #include <kintsugi/mesh/noise_level.hpp>
 #include <kintsugi/metrics/denoise.hpp>
 #include <kintsugi/smooth/feature_bilateral.hpp>
@@ -258,9 +259,11 @@ TEST_CASE_TEMPLATE("smooth_feature_bilateral denoises a noisy box on every mesh 
     CHECK(r.vertices == clean.vertices.size());
     CHECK(r.faces == clean.faces.size());
     CHECK(r.feature_vertices > 0);
-    // topology, coplanar creases, noise level, features, edge and face smoothing, straightening;
-    // then the risk selection's perturbed run (its stages nested) and the Taubin sweep.
-    CHECK(stages_outside_risk(r) == 7u);
+    // topology, coplanar creases, impulses, noise level, features, edge and face smoothing,
+    // straightening; then the risk selection's perturbed run (its stages nested) and the Taubin sweep.
+    CHECK(stages_outside_risk(r) == 8u);
+    CHECK_FALSE(r.impulsive_noise);  // Gaussian noise: nothing put back
+    CHECK(r.impulse_vertices == 0);
     CHECK(r.timings.back().stage == "risk: Taubin sweep");
     CHECK(r.risk.evaluated);
     CHECK_FALSE(r.risk.taubin);  // a box: the filters' result
@@ -292,8 +295,8 @@ TEST_CASE("features = false runs the same filters without feature handling") {
     CHECK(ro.features.sharp_edges.empty());
     CHECK(ro.feature_vertices == 0);
     CHECK(rw.feature_vertices > 0);
-    // topology, noise level, low-pass (when a step runs), face smoothing; then the risk selection's
-    CHECK(stages_outside_risk(ro) == (ro.lowpass_iterations > 0 ? 4u : 3u));
+    // topology, impulses, noise level, low-pass (when a step runs), face smoothing; then the risk selection's
+    CHECK(stages_outside_risk(ro) == (ro.lowpass_iterations > 0 ? 5u : 4u));
     CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
           ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
     CHECK(with.vertices != without.vertices);
@@ -776,9 +779,11 @@ TEST_CASE("impulsive noise: creases read from the faces left in their planes (tw
                         tensor.features.sharp_edges.begin(), tensor.features.sharp_edges.end()));
     // The smoothing: 7.57 deg without the stage, 2.76 with its creases, 1.11 with the
     // unmoved vertices (corners of two anchored faces or more) also held in place.
+    // (Impulse removal off: this measures the coplanar stage alone; with it, below.)
     auto with = noisy, creases_only = noisy, without = noisy;
-    const auto rw = ks::smooth_feature_bilateral(with);
+    const auto rw = ks::smooth_feature_bilateral(with, {.impulse_removal = false});
     ks::FeatureBilateralParams p;
+    p.impulse_removal = false;
     p.hold_unmoved = false;
     const auto rc = ks::smooth_feature_bilateral(creases_only, p);
     p.detection.coplanar_creases = false;
@@ -1537,5 +1542,229 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
         CHECK(ra.risk.taubin_iterations == rb.risk.taubin_iterations);
         CHECK(ra.risk.filters_rms == rb.risk.filters_rms);
         CHECK(a.vertices == b.vertices);
+    }
+}
+
+namespace {
+// The clean repository bunny with 10 % of its vertices moved along the normals by sigma = |e|
+// (bench_smooth's impulsive model, seed 11).
+struct ImpulsiveBunny {
+    ks::IndexedMesh clean, noisy;
+    double L = 0;
+    std::size_t moved = 0;
+    ImpulsiveBunny() {
+        clean = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off");
+        clean.normals.clear();
+        L = ks::mean_edge_length(clean);
+        noisy = ss::add_impulsive_noise(clean, L, 11);
+        for (std::size_t v = 0; v < clean.vertices.size(); ++v) moved += noisy.vertices[v] != clean.vertices[v];
+    }
+    // rms distance to the clean mesh over the vertices the noise moved
+    double moved_rms(const ks::IndexedMesh& m) const {
+        double s = 0;
+        for (std::size_t v = 0; v < clean.vertices.size(); ++v)
+            if (noisy.vertices[v] != clean.vertices[v]) s += (m.vertices[v] - clean.vertices[v]).squaredNorm();
+        return std::sqrt(s / static_cast<double>(moved)) / L;
+    }
+};
+}  // namespace
+
+TEST_CASE_TEMPLATE("remove_impulses puts the moved vertices back, the same on every mesh type and thread count", T,
+                   ks::IndexedMesh, ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>, ss::SurfaceMesh) {
+    const ImpulsiveBunny b;
+    Holder<T> h(b.noisy);
+    const auto r = ks::remove_impulses(h.mesh());
+    REQUIRE(r.status == ks::Status::ok);
+    const auto out = h.get();
+    std::size_t changed = 0;
+    for (std::size_t v = 0; v < out.vertices.size(); ++v) changed += out.vertices[v] != b.noisy.vertices[v];
+    MESSAGE("bunny.off, " << b.moved << " of " << b.clean.vertices.size() << " vertices moved: " << r.moved_vertices
+                          << " put back, " << r.unmoved_vertices << " taken as unmoved; rms of the moved "
+                          << b.moved_rms(b.noisy) << " -> " << b.moved_rms(out) << " |e|; heights median "
+                          << r.median_height / b.L << ", 99th percentile " << r.high_height / b.L << " |e|");
+    CHECK(r.impulsive);
+    CHECK_FALSE(r.dense);
+    CHECK(r.moved_vertices >= b.moved * 6 / 10);
+    CHECK(r.moved_vertices <= b.moved * 16 / 10);
+    CHECK(changed == r.moved_vertices);  // only the flagged vertices move
+    CHECK(b.moved_rms(out) < b.moved_rms(b.noisy) / 2.5);
+    CHECK(r.unmoved_vertices > b.clean.vertices.size() / 2);
+    ks::IndexedMesh reference = b.noisy;
+    (void)ks::remove_impulses(reference);
+    for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - reference.vertices[v]).norm() < 1e-12);
+    ks::IndexedMesh one = b.noisy, two = b.noisy;
+    {
+        ks::ThreadLimit limit(1);
+        (void)ks::remove_impulses(one);
+    }
+    {
+        ks::ThreadLimit limit(2);
+        (void)ks::remove_impulses(two);
+    }
+    CHECK(one.vertices == two.vertices);
+    CHECK(one.vertices == reference.vertices);
+}
+
+TEST_CASE("remove_impulses leaves clean meshes and Gaussian noise alone; the smoothing is then unchanged bit for bit") {
+    auto twelve = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "twelve.obj");
+    auto bunny = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off");
+    twelve.normals.clear();
+    bunny.normals.clear();
+    for (const auto* clean : {&twelve, &bunny}) {
+        const double L = ks::mean_edge_length(*clean);
+        for (double k : {0.0, 0.1, 0.3, 0.5, 0.8}) {
+            const auto noisy = k > 0 ? ss::add_gaussian_noise(*clean, k * L, true, 5) : *clean;
+            auto m = noisy;
+            const auto r = ks::remove_impulses(m);
+            INFO("noise " << k << "|e|, heights 99th percentile / median " << r.high_height / std::max(r.median_height, 0.01 * L));
+            CHECK_FALSE(r.impulsive);
+            CHECK(r.moved_vertices == 0);
+            CHECK(m.vertices == noisy.vertices);
+        }
+    }
+    const double L = ks::mean_edge_length(bunny);
+    const auto noisy = ss::add_gaussian_noise(bunny, 0.3 * L, true, 5);
+    auto on = noisy, off = noisy;
+    const auto r = ks::smooth_feature_bilateral(on);
+    (void)ks::smooth_feature_bilateral(off, {.impulse_removal = false});
+    CHECK_FALSE(r.impulsive_noise);
+    CHECK(r.impulse_vertices == 0);
+    CHECK(r.input_noise.sigma == r.noise.sigma);
+    CHECK(on.vertices == off.vertices);
+}
+
+TEST_CASE("impulsive noise on a curved shape: put back, the rest held, ahead of Taubin and of the filters on the impulses") {
+    const ImpulsiveBunny b;
+    auto ours = b.noisy, without = b.noisy;
+    const auto r = ks::smooth_feature_bilateral(ours);
+    const auto ro = ks::smooth_feature_bilateral(without, {.impulse_removal = false});
+    double best_taubin = 1e9;
+    for (std::size_t it : {10, 20, 50}) {
+        auto t = b.noisy;
+        (void)ks::smooth_taubin(t, {}, {.iterations = it});
+        best_taubin = std::min(best_taubin, ks::denoise_metrics(t, b.clean).mean_normal_angle_deg);
+    }
+    const double e = ks::denoise_metrics(ours, b.clean).mean_normal_angle_deg,
+                 eo = ks::denoise_metrics(without, b.clean).mean_normal_angle_deg,
+                 ei = ks::denoise_metrics(b.noisy, b.clean).mean_normal_angle_deg;
+    MESSAGE("bunny.off + 10 % impulsive: input " << ei << " deg, defaults " << e << " (" << r.impulse_vertices
+                                               << " put back, " << r.held_vertices << " held), without the removal "
+                                               << eo << ", best Taubin of 10/20/50 " << best_taubin
+                                               << "; noise estimated " << r.input_noise.relative << " -> "
+                                               << r.noise.relative << " |e|");
+    CHECK(r.impulsive_noise);
+    CHECK(r.impulse_vertices > 0);
+    CHECK(r.held_vertices > b.clean.vertices.size() / 2);
+    CHECK(ro.impulse_vertices == 0);
+    CHECK(e < best_taubin);
+    CHECK(e < eo - 1);
+    // The input's noise is reported; the filters' scales come from what is left.
+    CHECK(r.input_noise.sigma > 2 * r.noise.sigma);
+    // The risk selection does not compare (its estimates assume Gaussian noise) and says why.
+    CHECK_FALSE(r.risk.evaluated);
+    CHECK(r.risk.note.find("impulsive") != std::string::npos);
+    // The paper preset has no such stage.
+    CHECK_FALSE(ks::FeatureBilateralParams::paper().impulse_removal);
+    auto paper = b.noisy;
+    CHECK(ks::smooth_feature_bilateral(paper, ks::FeatureBilateralParams::paper()).impulse_vertices == 0);
+}
+
+TEST_CASE("remove_impulses: dense noise, bad values and cancellation leave the mesh untouched") {
+    const ImpulsiveBunny b;
+    SUBCASE("more than max_fraction flagged: nothing put back") {
+        auto m = b.noisy;
+        const auto r = ks::remove_impulses(m, {.max_fraction = 0.02});
+        CHECK(r.impulsive);
+        CHECK(r.dense);
+        CHECK(r.moved_vertices == 0);
+        CHECK(m.vertices == b.noisy.vertices);
+    }
+    SUBCASE("bad values name themselves") {
+        auto m = b.noisy;
+        auto bad = [&](const ks::ImpulseParams& p, const char* name) {
+            CHECK_THROWS_WITH_AS((void)ks::remove_impulses(m, p), doctest::Contains(name), ks::invalid_input);
+            CHECK(m.vertices == b.noisy.vertices);
+        };
+        bad({.gate = 1}, "gate");
+        bad({.threshold = 0}, "threshold");
+        bad({.floor = -0.5}, "floor");
+        bad({.passes = 0}, "passes");
+        bad({.passes = 101}, "passes");
+        bad({.max_fraction = 0}, "max_fraction");
+        bad({.max_fraction = 1.5}, "max_fraction");
+        bad({.keep = -1}, "keep");
+        bad({.gate = std::numeric_limits<double>::infinity()}, "gate");
+        m.vertices[7].x() = std::nan("");
+        CHECK_THROWS_WITH_AS((void)ks::remove_impulses(m), doctest::Contains("vertex 7"), ks::invalid_input);
+        m = b.noisy;
+        m.faces[3][2] = static_cast<ks::Index>(m.vertices.size());
+        CHECK_THROWS_AS((void)ks::remove_impulses(m), ks::invalid_input);
+    }
+    SUBCASE("cancelled: status cancelled, the mesh untouched") {
+        auto m = b.noisy;
+        std::stop_source stop;
+        stop.request_stop();
+        ks::ImpulseParams p;
+        p.control.stop = stop.get_token();
+        CHECK(ks::remove_impulses(m, p).status == ks::Status::cancelled);
+        CHECK(m.vertices == b.noisy.vertices);
+        int calls = 0;
+        ks::ImpulseParams p2;
+        p2.control.progress = [&](const ks::ProgressEvent&) { return ++calls < 3; };
+        CHECK(ks::remove_impulses(m, p2).status == ks::Status::cancelled);
+        CHECK(m.vertices == b.noisy.vertices);
+        // Inside the smoothing's stage too: stopped as it starts, the stage's own checks end the run.
+        std::stop_source stop2;
+        bool seen = false;
+        ks::FeatureBilateralParams fp;
+        fp.risk_selection = false;  // every stage reported (the selection forwards at most one event per 1 %)
+        fp.control.stop = stop2.get_token();
+        fp.control.progress = [&](const ks::ProgressEvent& e) {
+            if (e.stage == "impulses") {
+                seen = true;
+                stop2.request_stop();
+            }
+            return true;
+        };
+        auto s = b.noisy;
+        CHECK(ks::smooth_feature_bilateral(s, fp).status == ks::Status::cancelled);
+        CHECK(s.vertices == b.noisy.vertices);
+        CHECK(seen);
+    }
+    SUBCASE("an empty mesh and a mesh without faces: nothing to do") {
+        ks::IndexedMesh empty;
+        CHECK(ks::remove_impulses(empty).moved_vertices == 0);
+        ks::IndexedMesh points = b.noisy;
+        points.faces.clear();
+        CHECK(ks::remove_impulses(points).moved_vertices == 0);
+        CHECK(points.vertices == b.noisy.vertices);
+    }
+}
+
+TEST_CASE("shared data: impulsive noise on fertility and armadillo, ahead of the best Taubin and smooth_shape") {
+    const auto root = std::filesystem::path(KINTSUGI_SHARED_DATA_DIR);
+    KINTSUGI_REQUIRE_DATA(root / "libigl" / "fertility.off");
+    for (const auto& path : {root / "libigl" / "fertility.off", root / "cgal" / "meshes" / "armadillo.off"}) {
+        if (!std::filesystem::exists(path)) continue;
+        auto clean = ks::read_mesh(path);
+        clean.normals.clear();
+        const double L = ks::mean_edge_length(clean);
+        const auto noisy = ss::add_impulsive_noise(clean, L, 11);
+        auto ours = noisy;
+        const auto r = ks::smooth_feature_bilateral(ours);
+        double best_taubin = 1e9;
+        for (std::size_t it : {10, 20, 50}) {
+            auto t = noisy;
+            (void)ks::smooth_taubin(t, {}, {.iterations = it});
+            best_taubin = std::min(best_taubin, ks::denoise_metrics(t, clean).mean_normal_angle_deg);
+        }
+        const auto shape = ss::best_smooth_shape(noisy, clean);
+        const double e = ks::denoise_metrics(ours, clean).mean_normal_angle_deg,
+                     es = ks::denoise_metrics(shape, clean).mean_normal_angle_deg;
+        MESSAGE(path.filename().string() << " + 10 % impulsive: " << e << " deg (" << r.impulse_vertices
+                                         << " put back), best Taubin " << best_taubin << ", best smooth_shape " << es);
+        CHECK(r.impulse_vertices > 0);
+        CHECK(e < best_taubin);
+        CHECK(e < es);
     }
 }

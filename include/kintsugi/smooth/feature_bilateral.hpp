@@ -363,7 +363,8 @@ struct FeatureBilateralResult {
     std::size_t held_vertices = 0;
     std::size_t degenerate_faces = 0;  ///< faces of zero area in the input
     /// "topology", "coplanar creases" (features and SharpFeatureParams::coplanar_creases),
-    /// "impulses" (impulse_removal), "noise level" (when estimated), "low-pass" (when a step runs), "features",
+    /// "impulses" (impulse_removal), "noise level of the input" (when vertices were put back),
+    /// "noise level" (when estimated), "low-pass" (when a step runs), "features",
     /// "edge smoothing", "face smoothing", "edge straightening" (EdgeVertexMotion::straighten
     /// with sharp edges found); with risk_selection also "risk: perturbed run" (the whole second
     /// run and its bookkeeping), inside it "risk: perturbed <stage>" for each of that run's stages
@@ -371,7 +372,8 @@ struct FeatureBilateralResult {
     std::vector<StageTiming> timings;
     /// Faces repeating an earlier face (same corners, same cyclic order): smoothed as one.
     std::size_t duplicate_faces = 0;
-    /// The noise level estimated on the input (estimate_noise_level, model units);
+    /// The noise level estimated on the input (estimate_noise_level, model units), after
+    /// impulse removal when vertices were put back (`input_noise` is the input's then);
     /// status ok and all figures 0 when d and face_iterations were both given.
     NoiseLevel noise{};
     bool noise_estimated = false;  ///< whether `noise` was estimated (d or face_iterations unset)
@@ -415,6 +417,9 @@ struct FeatureBilateralResult {
     /// The noise read as impulsive but too many vertices were flagged (ImpulseParams::max_fraction):
     /// nothing was put back.
     bool impulses_dense = false;
+    /// The noise level estimated on the input before impulse removal (`noise` when no vertex
+    /// was put back; 0 when the noise was not estimated).
+    NoiseLevel input_noise{};
 };
 
 namespace detail::fbs {
@@ -909,7 +914,12 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
         if (params.impulse_removal && !reused) {
             progress.stage("impulses", 0.03, 0.035);
             std::vector<unsigned char> labels;
+            std::vector<Vec3> before = m.vertices;  // for the input's noise level, if vertices move
             const ImpulseResult ir = detail::impulses::run(m.vertices, m.faces, topo, L, hold, {}, progress, &labels);
+            if (ir.moved_vertices > 0 && (!params.d || !params.face_iterations)) {
+                progress.stage("noise level of the input", 0.035, 0.037);
+                result.input_noise = detail::noise::estimate(before, m.faces, topo, 2, progress);
+            }
             result.impulsive_noise = ir.impulsive;
             result.impulses_dense = ir.dense;
             result.impulse_vertices = ir.moved_vertices;
@@ -930,9 +940,10 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
             for (unsigned char h : held) result.held_vertices += h;
         }
         if (!params.d || !params.face_iterations) {
-            progress.stage("noise level", 0.035, 0.04);
+            progress.stage("noise level", 0.037, 0.04);
             result.noise = detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
             result.noise_estimated = true;
+            if (result.impulse_vertices == 0) result.input_noise = result.noise;
         }
         result.noise_after_lowpass = result.noise;
         // σ / |e| of the input with |e| its clean estimate (edges lengthened by the noise
@@ -964,7 +975,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
         if (result.strong_noise) fbs::raise_for_strong_noise(result.normal_iterations, detection);
         result.detection = detection;
         result.detection.control = {};
-        for (NoiseLevel* n : {&result.noise, &result.noise_after_lowpass}) {
+        for (NoiseLevel* n : {&result.noise, &result.noise_after_lowpass, &result.input_noise}) {
             n->sigma = so.frame.to_world(n->sigma);
             n->mean_edge_length = so.frame.to_world(n->mean_edge_length);
             n->clean_edge_length = so.frame.to_world(n->clean_edge_length);
