@@ -224,6 +224,7 @@ void BM_feature_bilateral(benchmark::State& state) {
     state.counters["faces"] = static_cast<double>(input.faces.size());
     state.counters["sharp_edges"] = static_cast<double>(r.features.sharp_edges.size());
     state.counters["anchored_faces"] = static_cast<double>(r.features.anchored_faces);
+    state.counters["impulses_put_back"] = static_cast<double>(r.impulse_vertices);
     if (risk) {
         state.counters["risk_taubin_kept"] = r.risk.taubin ? 1 : 0;
         state.counters["risk_taubin_steps"] = static_cast<double>(r.risk.taubin_iterations);
