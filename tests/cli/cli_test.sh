@@ -240,25 +240,29 @@ expect 0 "smooth --preset paper" -- "$bin" smooth "$mesh" "$work/sm3.off" --pres
 json_check "smooth: the paper's values, no estimate" "j['parameters']['preset']=='paper' and j['parameters']['a']==2 and j['parameters']['c']==2 and j['parameters']['d']==0.1 and j['parameters']['face_iterations']==2 and j['parameters']['edge_threshold']==0.251 and j['parameters']['normal_iterations']==1 and j['parameters']['lowpass_iterations']==0 and 'noise' not in j and j['parameters']['coplanar_creases'] is False and j['anchored_faces']==0 and j['parameters']['risk_selection'] is False and 'risk_selection' not in j and j['parameters']['impulse_removal'] is False"
 expect 0 "smooth --preset paper --c 1 --face-iterations 1" -- "$bin" smooth "$mesh" "$work/sm4.off" --preset paper --c 1 --face-iterations 1 --json
 json_check "smooth: options given override the preset" "j['parameters']['preset']=='paper' and j['parameters']['c']==1 and j['parameters']['face_iterations']==1 and j['parameters']['d']==0.1"
-# Risk selection: the bunny with seeded Gaussian noise of 0.5|e| in random directions (a smooth
-# shape: Taubin's result kept), the clean bunny (exact planes hold vertices: not compared).
-"$PY" - "$mesh" "$work/noisy_bunny.off" <<'PYEOF'
+# Noisy bunnies: SRC DST SEED FRACTION SIGMA moves each vertex (or, with FRACTION < 1, that
+# fraction of them, drawn first) in a random direction by a seeded Gaussian amount of SIGMA |e|.
+cat > "$work/noisy_mesh.py" <<'PYEOF'
 import math, random, sys
 tok = open(sys.argv[1]).read().split()
 nv, nf = int(tok[1]), int(tok[2])
 V = [[float(t) for t in tok[4 + 3 * i:7 + 3 * i]] for i in range(nv)]
 F = [[int(t) for t in tok[4 + 3 * nv + 4 * j + 1:4 + 3 * nv + 4 * j + 4]] for j in range(nf)]
 L = sum(math.dist(V[f[a]], V[f[(a + 1) % 3]]) for f in F for a in range(3)) / (3 * nf)
-rng = random.Random(7)
+rng = random.Random(int(sys.argv[3]))
+fraction, sigma = float(sys.argv[4]), float(sys.argv[5])
 out = ["OFF", "%d %d 0" % (nv, nf)]
 for p in V:
     d = [rng.gauss(0, 1) for _ in range(3)]
     n = math.sqrt(sum(x * x for x in d)) or 1
-    s = rng.gauss(0, 0.5 * L)
+    s = rng.gauss(0, sigma * L) if fraction >= 1 or rng.random() < fraction else 0.0
     out.append(" ".join(repr(p[k] + s * d[k] / n) for k in range(3)))
 out += ["3 %d %d %d" % tuple(f) for f in F]
 open(sys.argv[2], "w").write("\n".join(out) + "\n")
 PYEOF
+# Risk selection: the bunny with Gaussian noise of 0.5|e| in random directions (a smooth
+# shape: Taubin's result kept), the clean bunny (exact planes hold vertices: not compared).
+"$PY" "$work/noisy_mesh.py" "$mesh" "$work/noisy_bunny.off" 7 1 0.5
 expect 0 "smooth --risk-selection (noisy bunny)" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_risk.off" --risk-selection --json
 json_check "smooth: risk selection keeps Taubin's result on the noisy bunny" "j['parameters']['risk_selection'] is True and j['risk_selection']['evaluated'] is True and j['risk_selection']['result']=='taubin' and j['risk_selection']['taubin_iterations']>0 and 0<j['risk_selection']['taubin_rms']**2<0.75*j['risk_selection']['filters_rms']**2 and 0<j['risk_selection']['sigma']<=1.1*j['noise']['sigma'] and j['risk_selection']['note']=='' and 'risk: Taubin sweep' in j['timings']"
 expect 0 "smooth --risk-selection (clean bunny)" -- "$bin" smooth "$mesh" "$work/sm_risk2.off" --risk-selection --json
@@ -271,25 +275,9 @@ json_check "smooth: --no-risk-selection keeps the filters" "j['parameters']['ris
 if cmp -s "$work/sm_risk.off" "$work/sm_norisk.off"; then bad "smooth: --no-risk-selection wrote Taubin's result"; else ok; fi
 expect 2 "smooth --risk-selection --no-risk-selection" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_both.off" --risk-selection --no-risk-selection
 if [ -e "$work/sm_both.off" ]; then bad "smooth: contradictory risk flags wrote a file"; else ok; fi
-# Impulse removal: the bunny with one vertex in ten moved by a seeded Gaussian amount of |e| in a
-# random direction (put back; the rest held), and the same without the stage.
-"$PY" - "$mesh" "$work/impulsive_bunny.off" <<'PYEOF'
-import math, random, sys
-tok = open(sys.argv[1]).read().split()
-nv, nf = int(tok[1]), int(tok[2])
-V = [[float(t) for t in tok[4 + 3 * i:7 + 3 * i]] for i in range(nv)]
-F = [[int(t) for t in tok[4 + 3 * nv + 4 * j + 1:4 + 3 * nv + 4 * j + 4]] for j in range(nf)]
-L = sum(math.dist(V[f[a]], V[f[(a + 1) % 3]]) for f in F for a in range(3)) / (3 * nf)
-rng = random.Random(11)
-out = ["OFF", "%d %d 0" % (nv, nf)]
-for p in V:
-    d = [rng.gauss(0, 1) for _ in range(3)]
-    n = math.sqrt(sum(x * x for x in d)) or 1
-    s = rng.gauss(0, L) if rng.random() < 0.1 else 0.0
-    out.append(" ".join(repr(p[k] + s * d[k] / n) for k in range(3)))
-out += ["3 %d %d %d" % tuple(f) for f in F]
-open(sys.argv[2], "w").write("\n".join(out) + "\n")
-PYEOF
+# Impulse removal: the bunny with one vertex in ten moved by |e| (put back; the rest held), and
+# the same without the stage.
+"$PY" "$work/noisy_mesh.py" "$mesh" "$work/impulsive_bunny.off" 11 0.1 1
 expect 0 "smooth (impulsive bunny)" -- "$bin" smooth "$work/impulsive_bunny.off" "$work/sm_imp.off" --json
 json_check "smooth: impulses put back, the rest held, the input's noise reported" "j['parameters']['impulse_removal'] is True and j['impulses']['impulsive'] is True and j['impulses']['put_back']>0 and j['impulses']['dense'] is False and j['held_vertices']>j['impulses']['put_back'] and j['impulses']['input_noise']['relative']>j['noise']['relative'] and 'impulses' in j['timings'] and 'impulsive' in j['risk_selection']['note']"
 expect 0 "smooth --no-impulse-removal (impulsive bunny)" -- "$bin" smooth "$work/impulsive_bunny.off" "$work/sm_noimp.off" --no-impulse-removal --json
