@@ -1713,7 +1713,8 @@ TEST_CASE("remove_impulses: dense noise, bad values and cancellation leave the m
         p2.control.progress = [&](const ks::ProgressEvent&) { return ++calls < 3; };
         CHECK(ks::remove_impulses(m, p2).status == ks::Status::cancelled);
         CHECK(m.vertices == b.noisy.vertices);
-        // Inside the smoothing's stage too: stopped as it starts, the stage's own checks end the run.
+        // Stopped as the smoothing's stage starts: the run ends there or at the next check, the
+        // mesh untouched.
         std::stop_source stop2;
         bool seen = false;
         ks::FeatureBilateralParams fp;
@@ -1767,4 +1768,36 @@ TEST_CASE("shared data: impulsive noise on fertility and armadillo, ahead of the
         CHECK(e < best_taubin);
         CHECK(e < es);
     }
+}
+
+TEST_CASE("a clean plate with a half-cylinder across its grid: the smoothing puts nothing back, remove_impulses moves little") {
+    // Exact planes (median height 0) and a clean curved strip whose heights all pass the gate's
+    // 99th percentile: the strip must not be taken for impulses.
+    const int N = 60;
+    const double R = 3, a = 0.5, c = N / 2.0;
+    ks::IndexedMesh plate;
+    for (int j = 0; j <= N; ++j)
+        for (int i = 0; i <= N; ++i) {
+            const double d = -(i - c) * std::sin(a) + (j - c) * std::cos(a);
+            plate.vertices.push_back({double(i), double(j), std::abs(d) < R ? std::sqrt(R * R - d * d) : 0.0});
+        }
+    auto id = [&](int i, int j) { return static_cast<ks::Index>(j * (N + 1) + i); };
+    for (int j = 0; j < N; ++j)
+        for (int i = 0; i < N; ++i) {
+            plate.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+            plate.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+        }
+    auto m = plate;
+    const auto r = ks::remove_impulses(m);
+    double most = 0;
+    for (std::size_t v = 0; v < m.vertices.size(); ++v) most = std::max(most, (m.vertices[v] - plate.vertices[v]).norm());
+    MESSAGE("plate + half-cylinder: gate " << std::string(r.impulsive ? "passed" : "not passed") << ", " << r.moved_vertices
+                                           << " of " << plate.vertices.size() << " vertices moved, at most " << most);
+    CHECK(r.moved_vertices <= plate.vertices.size() / 100);  // 22 of 3,721 (before the neighbour test: 294, by 2.1)
+    CHECK(most < 1.0);
+    auto on = plate, off = plate;
+    const auto rs = ks::smooth_feature_bilateral(on);
+    (void)ks::smooth_feature_bilateral(off, {.impulse_removal = false});
+    CHECK(rs.impulse_vertices == 0);
+    CHECK(on.vertices == off.vertices);
 }

@@ -424,8 +424,8 @@ struct FeatureBilateralResult {
         Scalar filters_rms = 0, taubin_rms = 0;
         std::string note;                    ///< why it was not evaluated, empty otherwise
     } risk{};
-    /// Whether the input's noise read as impulsive and vertices were put back
-    /// (FeatureBilateralParams::impulse_removal), and how many.
+    /// Whether the input's noise read as impulsive (remove_impulses' gate passed;
+    /// FeatureBilateralParams::impulse_removal), and how many vertices were put back.
     bool impulsive_noise = false;
     std::size_t impulse_vertices = 0;
     /// The noise read as impulsive but too many vertices were flagged (ImpulseParams::max_fraction):
