@@ -322,7 +322,8 @@ struct FeatureBilateralParams {
     /// `risk_taubin_max_iterations` pairs) and return its result when its estimated error along
     /// the normals is below 0.75 times the filters' (squared errors; "Risk selection" above). Default true:
     /// on smooth organic shapes Taubin wins (fertility at 0.3|e|: 8.9° → 5.7°), and the noise table is
-    /// behind the best Taubin in 11 of 54 cells instead of 26; false (the `paper` preset): the filters'
+    /// behind the best Taubin in 11 of 54 cells instead of 26 (6 with the impulse removal too); false
+    /// (the `paper` preset): the filters'
     /// result always, without the second run and the sweep (about 0.75× the time).
     bool risk_selection = true;
     /// Most Taubin λ|μ pairs the risk selection tries. Range 1–10000; default 200 (the best
