@@ -163,11 +163,13 @@ inline Scalar quantile(std::vector<Scalar> x, double q) {
 }
 
 /// remove_impulses on positions in a sane frame; `hold` (optional) marks vertices that
-/// never move (known to be in place). `L` is the mean edge length. `labels` (optional)
-/// receives per vertex 1 (put back), 2 (unmoved) or 0.
+/// never move (known to be in place). `L` is the mean edge length. When vertices were put
+/// back, `labels` (optional) receives per vertex 1 (put back), 2 (unmoved) or 0, and `before`
+/// (optional) the positions as they came in (the copy the run keeps anyway); both are left
+/// as they are otherwise.
 inline ImpulseResult run(std::vector<Vec3>& p, const std::vector<Face>& faces, const MeshTopology& topo, Scalar L,
                          const std::vector<unsigned char>* hold, const ImpulseParams& params, Progress& progress,
-                         std::vector<unsigned char>* flagged_out = nullptr) {
+                         std::vector<unsigned char>* labels = nullptr, std::vector<Vec3>* before = nullptr) {
     ImpulseResult r;
     const std::size_t n = p.size();
     const Scalar min_area2 = 1e-4 * L * L * L * L;  // |cross|² at an area of 0.005|e|²
@@ -184,7 +186,7 @@ inline ImpulseResult run(std::vector<Vec3>& p, const std::vector<Face>& faces, c
     Scalar scale = std::max(r.median_height, params.floor * L);
     if (!(r.high_height > params.gate * scale)) return r;
     r.impulsive = true;
-    const std::vector<Vec3> input = p;
+    std::vector<Vec3> input = p;
     std::vector<Index> flagged;
     std::vector<unsigned char> is_flagged(n, 0);
     // A vertex is flagged when its height exceeds `threshold` times the scale. On a mesh of
@@ -320,8 +322,7 @@ inline ImpulseResult run(std::vector<Vec3>& p, const std::vector<Face>& faces, c
         if (added == 0) break;
         if (static_cast<Scalar>(flagged.size()) > params.max_fraction * static_cast<Scalar>(n)) {
             r.dense = true;  // not impulsive noise in the sense of the method: the input back
-            p = input;
-            if (flagged_out) flagged_out->assign(n, 0);
+            p = std::move(input);
             return r;
         }
         progress.update(static_cast<double>(pass) / static_cast<double>(params.passes));
@@ -332,10 +333,7 @@ inline ImpulseResult run(std::vector<Vec3>& p, const std::vector<Face>& faces, c
         progress.check();
     }
     r.moved_vertices = flagged.size();
-    if (flagged.empty()) {  // heavy-tailed but nothing stands out from its neighbours
-        if (flagged_out) flagged_out->assign(n, 0);
-        return r;
-    }
+    if (flagged.empty()) return r;  // heavy-tailed but nothing stands out from its neighbours
     // Labels: 1 put back; 2 within `keep` times the median of a plane of three neighbours
     // (taken as unmoved); 0 neither.
     parallel_for(0, n, [&](std::size_t v) {
@@ -344,7 +342,8 @@ inline ImpulseResult run(std::vector<Vec3>& p, const std::vector<Face>& faces, c
         is_flagged[v] = hv >= 0 && hv <= params.keep * scale ? 2 : 0;
     }, 1024);
     for (unsigned char c : is_flagged) r.unmoved_vertices += c == 2;
-    if (flagged_out) *flagged_out = std::move(is_flagged);
+    if (labels) *labels = std::move(is_flagged);
+    if (before) *before = std::move(input);
     return r;
 }
 

@@ -929,8 +929,9 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
         if (params.impulse_removal && !reused) {
             progress.stage("impulses", 0.03, 0.035);
             std::vector<unsigned char> labels;
-            std::vector<Vec3> before = m.vertices;  // for the input's noise level, if vertices move
-            const ImpulseResult ir = detail::impulses::run(m.vertices, m.faces, topo, L, hold, {}, progress, &labels);
+            std::vector<Vec3> before;  // the input's positions, for its noise level, if vertices move
+            const ImpulseResult ir =
+                detail::impulses::run(m.vertices, m.faces, topo, L, hold, {}, progress, &labels, &before);
             if (ir.moved_vertices > 0 && (!params.d || !params.face_iterations)) {
                 progress.stage("noise level of the input", 0.035, 0.037);
                 result.input_noise = detail::noise::estimate(before, m.faces, topo, 2, progress);
