@@ -519,6 +519,18 @@ struct DataScales {
 /// the data"): at least 20 filter-3 passes per face iteration, and the detection's
 /// pre-smoothing with at least 6 passes and a normal filter of c = 3.
 inline constexpr Scalar strong_noise_ratio = 0.47;
+/// Whether a mesh the impulse removal repaired still carries Gaussian noise on its unmoved
+/// vertices, so that holding them would keep it: its umbrella differences read σ_d ≥ 0.1|e|,
+/// or σ_d > 0 and the quadric fits read less than 1.35 σ_d. Independent noise reads alike at
+/// both scales, a shape's own detail more over the quadrics' two rings (armadillo + 10 %
+/// impulsive, repaired: 1.64; the same plus 0.03-0.1|e| Gaussian on the shark, bunny00 and
+/// bun_zipper: 1.10-1.27). σ_d is 0 (not read) when an exact majority makes the differences
+/// heavy-tailed: clean shapes with impulses, held. Measured in docs/methods/feature_bilateral.md
+/// ("Impulses on top of Gaussian noise").
+inline bool impulse_gaussian_after_repair(const NoiseLevel& n) {
+    const Scalar d = n.difference_sigma;
+    return d >= Scalar(0.1) * n.mean_edge_length || (d > 0 && n.quadric_sigma < Scalar(1.35) * d);
+}
 inline void raise_for_strong_noise(std::size_t& normal_iterations, SharpFeatureParams& detection) {
     normal_iterations = std::max<std::size_t>(normal_iterations, 20);
     detection.presmooth_iterations = std::max<std::size_t>(detection.presmooth_iterations, 6);
@@ -924,6 +936,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
                                   : std::nullopt;
         // The corners of anchored faces were not moved by the noise: held where they are.
         std::vector<unsigned char> held;
+        std::optional<NoiseLevel> repaired_noise;  // after the impulse removal, if it moved vertices
         if (params.hold_unmoved && coplanar && !coplanar->unmoved.empty()) held = coplanar->unmoved;
         const std::vector<unsigned char>* hold = held.empty() ? nullptr : &held;
         if (params.impulse_removal && !reused) {
@@ -941,10 +954,14 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
             result.impulse_vertices = ir.moved_vertices;
             if (ir.moved_vertices > 0) {
                 L = fbs::checked_mean_edge(fn, m.vertices, topo);
+                progress.stage("noise level", 0.035, 0.037);
+                repaired_noise = detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
                 // The noise moved few vertices: those left in the plane of three neighbours
                 // are held, as the corners of anchored faces are (armadillo + 10 % impulsive:
-                // 11.3° with the repair alone, 6.4° holding them).
-                if (params.hold_unmoved) {
+                // 11.3° with the repair alone, 6.4° holding them); not when the repaired mesh
+                // reads as Gaussian noise (impulses on top of it: the held vertices would keep
+                // it; fbs::impulse_gaussian_after_repair).
+                if (params.hold_unmoved && !impulse_gaussian_after_repair(*repaired_noise)) {
                     held.resize(nv, 0);
                     for (std::size_t v = 0; v < nv; ++v) held[v] |= labels[v] == 2;
                     hold = &held;
@@ -957,7 +974,7 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
         }
         if (!params.d || !params.face_iterations) {
             progress.stage("noise level", 0.037, 0.04);
-            result.noise = detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
+            result.noise = repaired_noise ? *repaired_noise : detail::noise::estimate(m.vertices, m.faces, topo, 2, progress);
             result.noise_estimated = true;
             if (result.impulse_vertices == 0) result.input_noise = result.noise;
         }
