@@ -1596,12 +1596,13 @@ namespace {
 struct ImpulsiveBunny {
     ks::IndexedMesh clean, noisy;
     double L = 0;
+    double truth = 0;  // rms over the vertices of the moves along the clean normals
     std::size_t moved = 0;
     ImpulsiveBunny() {
         clean = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off");
         clean.normals.clear();
         L = ks::mean_edge_length(clean);
-        noisy = ss::add_impulsive_noise(clean, L, 11);
+        noisy = ss::add_impulsive_noise(clean, L, 11, &truth);
         for (std::size_t v = 0; v < clean.vertices.size(); ++v) moved += noisy.vertices[v] != clean.vertices[v];
     }
     // rms distance to the clean mesh over the vertices the noise moved
@@ -1690,7 +1691,7 @@ TEST_CASE("impulsive noise on a curved shape: put back, the rest held, ahead of 
     MESSAGE("bunny.off + 10 % impulsive: input " << ei << " deg, defaults " << e << " (" << r.impulse_vertices
                                                << " put back, " << r.held_vertices << " held), without the removal "
                                                << eo << ", best Taubin of 10/20/50 " << best_taubin
-                                               << "; noise estimated " << r.input_noise.relative << " -> "
+                                               << "; noise estimated " << r.input_noise.sigma / b.L << " (truth " << b.truth / b.L << ") -> "
                                                << r.noise.relative << " |e|");
     CHECK(r.impulsive_noise);
     CHECK(r.impulse_vertices > 0);
@@ -1700,6 +1701,9 @@ TEST_CASE("impulsive noise on a curved shape: put back, the rest held, ahead of 
     CHECK(e < eo - 1);
     // The input's noise is reported; the filters' scales come from what is left.
     CHECK(r.input_noise.sigma > 2 * r.noise.sigma);
+    // The input's level: the repaired mesh's with the repair's moves, against the impulses' rms.
+    CHECK(r.input_noise.sigma / b.truth > 0.75);
+    CHECK(r.input_noise.sigma / b.truth < 1.25);
     // The risk selection does not compare (its estimates assume Gaussian noise) and says why.
     CHECK_FALSE(r.risk.evaluated);
     CHECK(r.risk.note.find("impulsive") != std::string::npos);
