@@ -175,6 +175,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             j["noise"]["relative"] = r.noise.relative;
             j["noise"]["clean_edge_length"] = r.noise.clean_edge_length;
             j["noise"]["vertices_used"] = r.noise.vertices_used;
+            j["noise"]["quadric_sigma"] = r.noise.quadric_sigma;
+            j["noise"]["difference_sigma"] = r.noise.difference_sigma;
             j["noise"]["after_lowpass"]["sigma"] = r.noise_after_lowpass.sigma;
             j["noise"]["after_lowpass"]["relative"] = r.noise_after_lowpass.relative;
         }

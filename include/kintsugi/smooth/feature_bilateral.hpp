@@ -173,7 +173,10 @@
 /// above are put onto a robust quadric of their unflagged two-ring, and the vertices left in
 /// such a plane are held like the corners of anchored faces. Gaussian noise and scans do not
 /// pass its gate (the run is then bit-identical), and above a fifth of the vertices flagged
-/// it puts nothing back. The noise is estimated after it (`input_noise` keeps the input's).
+/// it puts nothing back. The vertices are not held when the repaired mesh reads as Gaussian
+/// noise (impulses on top of Gaussian noise; fbs::impulse_gaussian_after_repair). The noise is
+/// estimated after it (`input_noise` is the input's: the repaired mesh's with the repair's
+/// moves added in quadrature).
 /// Noise-table impulsive cells: fertility 9.5° → 3.8°, armadillo 14.2° → 6.4°, the elephant
 /// 16.9° → 8.1°, SharpSphere 7.3° → 3.2°; measured in docs/methods/feature_bilateral.md
 /// ("Impulse removal").
@@ -1198,9 +1201,9 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                                                                so.order);
             // σ from the Taubin residual itself: E res_k = σ²(m − 2 tr S_k + tr S_kᵀS_k) + bias, so
             // σ² = res_k / (m − 2 tr S_k + tr S_kᵀS_k) at the count of least risk for σ, to a fixed
-            // point from the estimate. The estimate reads detail as noise under light noise
-            // (elephant at 0.1|e|: 1.9× the true σ) and under-reads strong noise by about 7 %; the
-            // count follows σ closely.
+            // point from the quadric estimate. That estimate reads detail as noise under light
+            // noise (elephant at 0.1|e|: 1.9× the true σ) and under-reads strong noise by about
+            // 7 %; the count follows σ closely.
             const Scalar ms = static_cast<Scalar>(std::max<std::size_t>(m, 1));
             auto implied = [&](std::size_t k) {
                 const Scalar dof = ms - 2 * curves.trace[k] + curves.trace_sq[k];
