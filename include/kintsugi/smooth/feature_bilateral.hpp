@@ -178,7 +178,7 @@
 /// estimated after it (`input_noise` is the input's: the repaired mesh's with the repair's
 /// moves added in quadrature).
 /// Noise-table impulsive cells: fertility 9.5° → 3.8°, armadillo 14.2° → 6.4°, the elephant
-/// 16.9° → 8.1°, SharpSphere 7.3° → 3.2°; measured in docs/methods/feature_bilateral.md
+/// 16.9° → 6.7°, SharpSphere 7.3° → 3.2°; measured in docs/methods/feature_bilateral.md
 /// ("Impulse removal").
 ///
 /// ## Risk selection: Taubin where it does better (on by default)
