@@ -64,8 +64,8 @@
 /// (σ = 0.3|e| etc.). Tangential noise lengthens edges too and is not taken off: under
 /// noise along random directions the figure stays 10–30 % high at 0.5–0.8|e|.
 ///
-/// Cost: one small least-squares fit per vertex, and under 0.3|e| two passes over the
-/// edges and four over the one-rings, linear in the mesh, parallel; the
+/// Cost: one small least-squares fit per vertex, and under 0.3|e| two passes over the faces
+/// and the edges and five over the one-rings, linear in the mesh, parallel; the
 /// result does not depend on the thread count (each vertex is fitted alone, and the
 /// median is of a fixed array).
 
@@ -109,8 +109,9 @@ struct NoiseLevel {
     Scalar relative = 0;           ///< sigma / clean_edge_length
     std::size_t vertices_used = 0;  ///< vertices whose fit entered the median (enough neighbours, not degenerate)
     Scalar quadric_sigma = 0;     ///< the quadric-fit estimate alone, model units
-    /// The difference-based estimate, model units; 0 when not used (quadric estimate at or
-    /// above 0.3|e|, heavy-tailed differences, or fewer than 16 interior edges).
+    /// The difference-based estimate, model units; 0 when not computed (quadric estimate at or
+    /// above 0.3|e|, heavy-tailed differences, or fewer than 16 interior edges). When it is
+    /// above the quadric estimate it is reported but `sigma` is the quadric's.
     Scalar difference_sigma = 0;
 };
 
@@ -248,7 +249,9 @@ inline std::vector<Vec3> ring_averaged_normals(const std::vector<Vec3>& V, const
 /// A difference-based estimate and how heavy its tail is.
 struct DifferenceEstimate {
     Scalar sigma = 0;  ///< model units; 0 when fewer than 16 edges qualify
-    Scalar tail = 0;   ///< 90th percentile over the median of the scaled squared differences
+    /// 90th percentile over the median of the scaled squared differences (infinite when the
+    /// median is 0 or fewer than 16 edges qualify)
+    Scalar tail = 0;
 };
 
 /// The difference-based estimate (see the file comment): σ from the median over interior
@@ -284,7 +287,10 @@ inline DifferenceEstimate difference_sigma(const std::vector<Vec3>& V, const Mes
     }, 4096);
     std::erase_if(r, [](Scalar x) { return !std::isfinite(x); });
     DifferenceEstimate out;
-    if (r.size() < 16) return out;
+    if (r.size() < 16) {
+        out.tail = std::numeric_limits<Scalar>::infinity();  // too few edges: not used
+        return out;
+    }
     auto mid = r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2);
     std::nth_element(r.begin(), mid, r.end());
     const Scalar median = std::max<Scalar>(*mid, 0);
@@ -337,10 +343,11 @@ inline NoiseLevel estimate(const std::vector<Vec3>& V, const std::vector<Face>& 
         const Scalar s3 = d0.tail <= Scalar(15) ? difference_sigma(V, topo, ring_averaged_normals(V, F, topo, 3)).sigma : 0;
         const Scalar w = std::clamp((s3 / L - Scalar(0.1)) / Scalar(0.2), Scalar(0), Scalar(1));
         out.difference_sigma = s3 > 0 ? (1 - w) * d0.sigma + w * s3 : 0;
-        if (out.difference_sigma > 0) {
-            // The lower of the two below 0.2|e|, the quadric's from 0.3|e|, linear in between.
+        if (out.difference_sigma > 0 && out.difference_sigma < out.sigma) {
+            // The lower of the two below 0.2|e|, the quadric's from 0.3|e|, linear in between
+            // (never above the quadric's: a higher difference reading is reported, not used).
             const Scalar t = std::clamp((out.sigma / L - Scalar(0.2)) / Scalar(0.1), Scalar(0), Scalar(1));
-            out.sigma = (1 - t) * std::min(out.sigma, out.difference_sigma) + t * out.sigma;
+            out.sigma = std::min(out.sigma, (1 - t) * out.difference_sigma + t * out.sigma);
         }
     }
     if (count > 0) {
@@ -363,12 +370,14 @@ inline void to_world(NoiseLevel& n, const ScaleFrame& frame) {
 }  // namespace detail::noise
 
 /// @brief Estimates the standard deviation of the noise normal to a mesh's surface
-/// from the median of local quadric-fit residual variances (see the file comment).
+/// from the median of local quadric-fit residual variances, combined below 0.3|e| with a
+/// median of umbrella-height differences across edges (see the file comment).
 /// @tparam M a type modelling TriangleMesh
 /// @param mesh   the mesh (not modified); units are the model's
 /// @param params ring count of the fits (1–8, default 2), control
 /// @return sigma (model units), the input's and the estimated clean mean edge length,
-///         sigma relative to the latter, the number of vertices fitted.
+///         sigma relative to the latter, the number of vertices fitted, and the two
+///         estimates sigma comes from (quadric_sigma, difference_sigma).
 ///         Status::cancelled: every figure 0.
 /// @throws invalid_input on an empty mesh, NaN/Inf coordinates, a face index out of
 ///         range, or rings outside 1–8.
