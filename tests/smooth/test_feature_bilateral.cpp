@@ -1737,6 +1737,24 @@ TEST_CASE("impulses on top of Gaussian noise: put back, and the noisy rest not h
     CHECK(r.held_vertices == 0);
     CHECK(e < ei - 2);
     CHECK(e < eo + 0.5);  // 8.2° against 7.9°
+    // Impulses of 3|e| on 0.3|e| of Gaussian noise: the quadric fits of the repaired mesh read
+    // over 0.3|e| (the differences are not computed there): not held (25.0° held, 12.7° not).
+    {
+        double unused = 0;
+        const auto big = ss::add_impulsive_noise(b.clean, 3 * b.L, 11, &unused);
+        const auto strong = ss::add_gaussian_noise(b.clean, 0.3 * b.L, true, 5);
+        auto m = big;
+        for (std::size_t v = 0; v < m.vertices.size(); ++v) m.vertices[v] += strong.vertices[v] - b.clean.vertices[v];
+        const auto input = m;
+        const auto rs = ks::smooth_feature_bilateral(m);
+        const double es = ks::denoise_metrics(m, b.clean).mean_normal_angle_deg;
+        MESSAGE("bunny.off + 10 % x 3|e| + 0.3|e| Gaussian: input " << ks::denoise_metrics(input, b.clean).mean_normal_angle_deg
+                                                                  << " deg, defaults " << es << " (" << rs.impulse_vertices
+                                                                  << " put back, " << rs.held_vertices << " held)");
+        CHECK(rs.impulse_vertices > 0);
+        CHECK(rs.held_vertices == 0);
+        CHECK(es < 14);  // 12.7°
+    }
     // The same impulses alone: held (an exact majority; the differences are not read).
     auto clean_majority = b.noisy;
     const auto rc = ks::smooth_feature_bilateral(clean_majority);
