@@ -97,7 +97,8 @@
 /// ## Parameters from the data (the paper's future work)
 /// When `d` or `face_iterations` is left unset (the default), the input's noise level
 /// is estimated first (estimate_noise_level, mesh/noise_level.hpp: the median of
-/// local quadric-fit residual variances, σ normal to the surface) and, with
+/// local quadric-fit residual variances, below 0.3|e| combined with umbrella-height
+/// differences, which read less of a detailed mesh's shape; σ normal to the surface) and, with
 /// r = σ/|e| (|e| the input's mean edge length, as for every scale here),
 /// d = max(0.14, 0.5·(r − 0.05)) and face_iterations = min(8, 3 + round(20·max(0, r − 0.38))):
 /// the measured defaults up to r ≈ 0.33 (noise of about 0.3|e|), a wider range and more
@@ -532,8 +533,8 @@ inline constexpr Scalar strong_noise_ratio = 0.47;
 /// the quadrics' two rings (armadillo + 10 % impulsive, repaired: 1.64; the same plus
 /// 0.03-0.1|e| Gaussian on the shark, bunny00 and bun_zipper: 1.10-1.27). σ_d is 0 (not
 /// read) when an exact majority makes the differences heavy-tailed (clean shapes with
-/// impulses: held) and when the quadric fits read 0.3|e| or more (not computed). Measured in docs/methods/feature_bilateral.md
-/// ("Impulses on top of Gaussian noise").
+/// impulses: held) and when the quadric fits read 0.3|e| or more (not computed). Measured in
+/// docs/methods/feature_bilateral.md ("Impulses on top of Gaussian noise").
 inline bool impulse_gaussian_after_repair(const NoiseLevel& n) {
     const Scalar d = n.difference_sigma, L = n.mean_edge_length;
     // From 0.3|e| the quadric reading alone (the differences are not computed there): 10 % ×
