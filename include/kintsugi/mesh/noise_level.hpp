@@ -218,30 +218,36 @@ inline std::vector<Scalar> local_variances(const std::vector<Vec3>& V, const std
     return out;
 }
 
-/// Unit vertex normals (area-weighted), then `rounds` times the normalised sum over each
-/// vertex and its one-ring; zero where undefined.
-inline std::vector<Vec3> ring_averaged_normals(const std::vector<Vec3>& V, const std::vector<Face>& F,
-                                               const MeshTopology& topo, int rounds) {
-    const std::size_t nv = V.size();
-    std::vector<Vec3> n(nv, Vec3::Zero());
-    for (const Face& f : F) {
-        const Vec3 c = (V[f[1]] - V[f[0]]).cross(V[f[2]] - V[f[0]]);
-        for (Index v : f) n[v] += c;
-    }
+/// `normals` (unit or zero) `rounds` times replaced by the normalised sum over each vertex and
+/// its one-ring; zero where undefined.
+inline std::vector<Vec3> ring_averaged_normals(std::vector<Vec3> n, const MeshTopology& topo, int rounds) {
     auto normalise = [](Vec3& a) {
         const Scalar l = a.norm();
         a = l > 0 && std::isfinite(l) ? Vec3(a / l) : Vec3(Vec3::Zero());
     };
-    for (Vec3& a : n) normalise(a);
-    std::vector<Vec3> next(nv);
+    std::vector<Vec3> next(n.size());
     for (int r = 0; r < rounds; ++r) {
-        parallel_for(0, nv, [&](std::size_t v) {
+        parallel_for(0, n.size(), [&](std::size_t v) {
             Vec3 a = n[v];
             for (Index u : topo.vertex_neighbors(v)) a += n[u];
             normalise(a);
             next[v] = a;
         }, 4096);
         n.swap(next);
+    }
+    return n;
+}
+
+/// Unit area-weighted vertex normals of positions already in a safe frame; zero where undefined.
+inline std::vector<Vec3> unit_vertex_normals(const std::vector<Vec3>& V, const std::vector<Face>& F) {
+    std::vector<Vec3> n(V.size(), Vec3::Zero());
+    for (const Face& f : F) {
+        const Vec3 c = (V[f[1]] - V[f[0]]).cross(V[f[2]] - V[f[0]]);
+        for (Index v : f) n[v] += c;
+    }
+    for (Vec3& a : n) {
+        const Scalar l = a.norm();
+        a = l > 0 && std::isfinite(l) ? Vec3(a / l) : Vec3(Vec3::Zero());
     }
     return n;
 }
@@ -339,8 +345,10 @@ inline NoiseLevel estimate(const std::vector<Vec3>& V, const std::vector<Face>& 
         // 7.4-12; 10 % or a third of the vertices moved, 21-460: the median then reads the
         // unmoved majority).
         const Scalar L = out.mean_edge_length;
-        const DifferenceEstimate d0 = difference_sigma(V, topo, ring_averaged_normals(V, F, topo, 0));
-        const Scalar s3 = d0.tail <= Scalar(15) ? difference_sigma(V, topo, ring_averaged_normals(V, F, topo, 3)).sigma : 0;
+        std::vector<Vec3> normals = unit_vertex_normals(V, F);
+        const DifferenceEstimate d0 = difference_sigma(V, topo, normals);
+        const Scalar s3 =
+            d0.tail <= Scalar(15) ? difference_sigma(V, topo, ring_averaged_normals(std::move(normals), topo, 3)).sigma : 0;
         const Scalar w = std::clamp((s3 / L - Scalar(0.1)) / Scalar(0.2), Scalar(0), Scalar(1));
         out.difference_sigma = s3 > 0 ? (1 - w) * d0.sigma + w * s3 : 0;
         if (out.difference_sigma > 0 && out.difference_sigma < out.sigma) {
