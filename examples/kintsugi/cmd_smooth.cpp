@@ -15,6 +15,7 @@
 
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <string>
 
 namespace {
@@ -201,6 +202,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             rs["sigma"] = r.risk.sigma;
             rs["filters_rms"] = r.risk.filters_rms;
             rs["taubin_rms"] = r.risk.taubin_rms;
+            rs["coarse"] = r.risk.coarse;
+            rs["median_dihedral_deg"] = r.risk.median_dihedral * 180 / std::numbers::pi;
             rs["note"] = r.risk.note;
         }
         j["vertices"] = r.vertices;
@@ -215,7 +218,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         if (!o->features.empty()) j["features"] = o->features;
         std::string how;
         if (params.risk_selection)
-            how = r.risk.taubin ? ", Taubin's result kept (" + std::to_string(r.risk.taubin_iterations) + " steps; lower estimated error)"
+            how = r.risk.taubin ? ", Taubin's result kept (" + std::to_string(r.risk.taubin_iterations) +
+                                      (r.risk.coarse ? " steps; a mesh too coarse for the filters)" : " steps; lower estimated error)")
                   : r.risk.evaluated ? ", the filters' result kept (lower estimated error)"
                                      : ", the filters' result kept (risks not compared: " + r.risk.note + ")";
         if (r.impulse_vertices > 0)

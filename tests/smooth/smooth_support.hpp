@@ -102,6 +102,72 @@ inline ks::IndexedMesh box_mesh(int n) {
     return m;
 }
 
+/// A torus of radii R (core) and r (tube) on an nu × nv grid, two triangles per quad,
+/// outward orientation: a coarse smooth shape when the grid is small (24 × 12: 576 faces,
+/// 15° and 30° between neighbouring rows).
+inline ks::IndexedMesh torus_mesh(int nu, int nv, double R, double r) {
+    ks::IndexedMesh m;
+    for (int i = 0; i < nu; ++i)
+        for (int j = 0; j < nv; ++j) {
+            const double u = 2 * std::numbers::pi * i / nu, v = 2 * std::numbers::pi * j / nv;
+            m.vertices.emplace_back((R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u), r * std::sin(v));
+        }
+    auto id = [&](int i, int j) { return ks::Index(((i + nu) % nu) * nv + (j + nv) % nv); };
+    for (int i = 0; i < nu; ++i)
+        for (int j = 0; j < nv; ++j) {
+            m.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+            m.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+        }
+    return m;
+}
+
+/// A closed prism over a regular `sides`-gon of radius 1 and height h (a tessellated
+/// cylinder, as CAD exports it): `rings` rows of side quads, each cap two concentric rows
+/// and a fan, outward orientation. Its sides meet at 360°/sides and the caps at 90°.
+inline ks::IndexedMesh cylinder_mesh(int sides, int rings, double h) {
+    ks::IndexedMesh m;
+    for (int k = 0; k <= rings; ++k)
+        for (int i = 0; i < sides; ++i) {
+            const double a = 2 * std::numbers::pi * i / sides;
+            m.vertices.emplace_back(std::cos(a), std::sin(a), h * k / rings);
+        }
+    auto id = [&](int k, int i) { return ks::Index(k * sides + (i + sides) % sides); };
+    for (int k = 0; k < rings; ++k)
+        for (int i = 0; i < sides; ++i) {
+            m.faces.push_back({id(k, i), id(k, i + 1), id(k + 1, i + 1)});
+            m.faces.push_back({id(k, i), id(k + 1, i + 1), id(k + 1, i)});
+        }
+    for (int top = 0; top < 2; ++top) {
+        const double z = top ? h : 0;
+        std::vector<ks::Index> outer;
+        for (int i = 0; i < sides; ++i) outer.push_back(id(top ? rings : 0, i));
+        for (int row = 2; row >= 1; --row) {
+            std::vector<ks::Index> inner;
+            for (int i = 0; i < sides; ++i) {
+                const double a = 2 * std::numbers::pi * (i + 0.5 * (3 - row)) / sides;
+                m.vertices.emplace_back(row / 3.0 * std::cos(a), row / 3.0 * std::sin(a), z);
+                inner.push_back(ks::Index(m.vertices.size() - 1));
+            }
+            for (int i = 0; i < sides; ++i) {
+                const ks::Index a = outer[i], b = outer[(i + 1) % sides], c = inner[i], d = inner[(i + 1) % sides];
+                if (top) {
+                    m.faces.push_back({a, c, b});
+                    m.faces.push_back({b, c, d});
+                } else {
+                    m.faces.push_back({a, b, c});
+                    m.faces.push_back({b, d, c});
+                }
+            }
+            outer = inner;
+        }
+        m.vertices.emplace_back(0, 0, z);
+        const ks::Index c = ks::Index(m.vertices.size() - 1);
+        for (int i = 0; i < sides; ++i)
+            m.faces.push_back(top ? ks::Face{outer[i], c, outer[(i + 1) % sides]} : ks::Face{outer[i], outer[(i + 1) % sides], c});
+    }
+    return m;
+}
+
 /// Moves every vertex along its area-weighted normal by a deterministic pseudo-random
 /// amount, uniform in [-amplitude, amplitude].
 inline ks::IndexedMesh add_normal_noise(const ks::IndexedMesh& m, double amplitude, std::uint32_t seed = 1) {

@@ -1418,6 +1418,59 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
     }
 }
 
+TEST_CASE("risk selection on coarse meshes: Taubin's result where the filters flatten a curved surface, the filters' on a prism") {
+    SUBCASE("a 24 x 12 torus (576 faces) at 0.8|e|: too coarse for the filters, Taubin's result") {
+        const auto clean = ss::torus_mesh(24, 12, 1.0, 0.4);
+        const double L = ks::mean_edge_length(clean);
+        for (std::uint32_t seed : {11u, 12u}) {
+            const auto noisy = ss::add_gaussian_noise(clean, 0.8 * L, true, seed);
+            auto out = noisy;
+            const auto r = ks::smooth_feature_bilateral(out);
+            REQUIRE(r.status == ks::Status::ok);
+            REQUIRE(r.risk.evaluated);
+            auto filters = noisy;
+            (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
+            const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+            const double ef = ks::denoise_metrics(filters, clean).mean_normal_angle_deg;
+            MESSAGE("torus 24x12, 0.8|e|, seed " << seed << ": " << e << " deg (Taubin, " << r.risk.taubin_iterations
+                                                 << " steps), filters " << ef << "; median angle "
+                                                 << r.risk.median_dihedral * 180 / std::numbers::pi << " deg, risk ratio "
+                                                 << r.risk.taubin_rms * r.risk.taubin_rms / (r.risk.filters_rms * r.risk.filters_rms));
+            // The estimated risks favour the filters here; the coarseness keeps Taubin's result.
+            CHECK(r.risk.taubin_rms > r.risk.filters_rms);
+            CHECK(r.risk.coarse);
+            CHECK(r.risk.taubin);
+            CHECK(r.risk.median_dihedral > ks::detail::fbs::coarse_dihedral * r.d);
+            CHECK(e < 10.0);  // 8.8 and 8.0 measured
+            CHECK(ef > 18.0);  // 22.8 and 25.6: facets
+            auto taubin = noisy;
+            (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
+            for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - taubin.vertices[v]).norm() == 0);
+        }
+    }
+    SUBCASE("a 16-sided prism (352 faces) at 0.5|e|: its facets are the shape, the filters' result") {
+        const auto clean = ss::cylinder_mesh(16, 6, 2.0);
+        const double L = ks::mean_edge_length(clean);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.5 * L, true, 11);
+        auto out = noisy;
+        const auto r = ks::smooth_feature_bilateral(out);
+        REQUIRE(r.status == ks::Status::ok);
+        REQUIRE(r.risk.evaluated);
+        auto taubin = noisy;
+        (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
+        const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+        const double et = ks::denoise_metrics(taubin, clean).mean_normal_angle_deg;
+        MESSAGE("prism 16, 0.5|e|: " << e << " deg (filters), Taubin " << et << "; median angle "
+                                     << r.risk.median_dihedral * 180 / std::numbers::pi << " deg");
+        CHECK_FALSE(r.risk.coarse);
+        CHECK_FALSE(r.risk.taubin);
+        CHECK(r.risk.median_dihedral > 0);  // measured on Taubin's result, below the bound
+        CHECK(r.risk.median_dihedral < ks::detail::fbs::coarse_dihedral * r.d);
+        CHECK(e < 7.0);    // 5.2 measured
+        CHECK(et > 12.0);  // 14.2: the facets rounded
+    }
+}
+
 TEST_CASE("risk selection's second run on the first run's state: on the same input, the first run's result bit for bit") {
     // RunReuse hands the perturbed run the first run's vertex order, topology, workspace, filter-3
     // and filter-4 neighbour sets and edge length; given the same input, the values and the

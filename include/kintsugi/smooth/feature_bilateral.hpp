@@ -427,6 +427,11 @@ struct FeatureBilateralResult {
         /// Estimated rms error along the normals of each result, model units (√(risk / m),
         /// m the moved vertices; 0 where the risk estimate is negative).
         Scalar filters_rms = 0, taubin_rms = 0;
+        /// Taubin's risk was lower but not below risk_ratio times the filters': the median angle
+        /// between neighbouring faces of Taubin's result (radians), and whether it exceeded the
+        /// range scale d as an angle, which keeps Taubin's result (a mesh too coarse for the filters).
+        Scalar median_dihedral = 0;
+        bool coarse = false;
         std::string note;                    ///< why it was not evaluated, empty otherwise
     } risk{};
     /// Whether the input's noise read as impulsive (remove_impulses' gate passed;
@@ -1109,6 +1114,41 @@ FeatureBilateralResult smooth_run(M& mesh, const FeatureBilateralParams& params,
 /// Taubin's result is returned when its estimated risk is below this fraction of the
 /// filters' (see select_by_risk).
 inline constexpr Scalar risk_ratio = 0.75;
+/// Taubin's result is also returned when the median angle between its neighbouring faces
+/// exceeds this multiple of the range scale d, in radians (see select_by_risk). Set between
+/// the shapes it must keep for Taubin (CGAL's eight.off, 634 faces, median 15.6-16.4°: filters
+/// 24-27° against Taubin's 11-12° at 0.5-0.8|e|; a 24 × 12 torus, 11.1-11.7°) and a 16-sided
+/// cylinder whose facets the filters keep (up to 8.3°; 1.25 × 0.14 rad = 10.0°).
+inline constexpr Scalar coarse_dihedral = 1.25;
+
+/// The median over the interior edges (two faces) of the angle between the two faces'
+/// normals, in radians; 0 when no such edge has two non-degenerate faces. Degenerate faces
+/// are left out.
+inline Scalar median_dihedral_angle(const std::vector<Vec3>& positions, const MeshTopology& topo) {
+    const auto& faces = topo.faces();
+    std::vector<Vec3> n(faces.size());
+    parallel_for(0, faces.size(), [&](std::size_t f) {
+        const Face& t = faces[f];
+        const Vec3 c = (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
+        const Scalar len = c.norm();
+        n[f] = len > 0 ? Vec3(c / len) : Vec3::Zero();
+    }, 4096);
+    std::vector<Scalar> angles;
+    angles.reserve(topo.num_edges());
+    for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+        const auto ef = topo.edge_faces(static_cast<Index>(e));
+        if (ef.size() != 2) continue;
+        const Vec3& a = n[ef[0]];
+        const Vec3& b = n[ef[1]];
+        if (a.squaredNorm() == 0 || b.squaredNorm() == 0) continue;
+        // atan2 of |a×b| and a·b: accurate near 0 and π, orientation-free for consistent faces.
+        angles.push_back(std::atan2(a.cross(b).norm(), a.dot(b)));
+    }
+    if (angles.empty()) return 0;
+    auto mid = angles.begin() + static_cast<std::ptrdiff_t>(angles.size() / 2);
+    std::nth_element(angles.begin(), mid, angles.end());
+    return *mid;
+}
 /// The selection is skipped when the σ its Taubin residual implies exceeds the estimate by
 /// more than this factor; the sweep covers the least-risk counts of every σ up to it.
 inline constexpr Scalar risk_sigma_limit = 1.1;
@@ -1241,16 +1281,29 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 // 11.1° against 14.3°); organic shapes read 0.23-0.62 (fertility; chosen on the
                 // tuned shapes).
                 result.risk.taubin = risk_filters > 0 && risk_taubin < risk_ratio * risk_filters;
-                if (result.risk.taubin) {
+                {
                     // In the input's order, on the input's faces: smooth_taubin's result bit for bit
                     // (the internal order sums each one-ring in another order: ~1e-9|e| apart 1e6 from
                     // the origin).
                     taubin_world = input.vertices;
                     frame.to_local(taubin_world);
-                    (void)taubin_smooth(taubin_world, MeshTopology(nv, input.faces), {}, TaubinParams{.iterations = k},
-                                        progress);
-                    frame.to_world(taubin_world);
-                    chosen = &taubin_world;
+                    const MeshTopology input_topo(nv, input.faces);
+                    (void)taubin_smooth(taubin_world, input_topo, {}, TaubinParams{.iterations = k}, progress);
+                    if (!result.risk.taubin) {
+                        // Taubin's result is also kept on a mesh too coarse for the filters: where
+                        // the median angle θ between neighbouring faces of Taubin's result exceeds
+                        // coarse_dihedral·d (radians), a face's plane lies about θ|e| > 1.25 σ_g from the
+                        // vertices one edge away, so filter 4 reads the surface's own bending as
+                        // features and flattens it into facets, and the filters' risk reads low.
+                        result.risk.median_dihedral = median_dihedral_angle(taubin_world, input_topo);
+                        result.risk.taubin = result.risk.coarse = result.risk.median_dihedral > coarse_dihedral * result.d;
+                    }
+                    if (result.risk.taubin) {
+                        frame.to_world(taubin_world);
+                        chosen = &taubin_world;
+                    } else {
+                        taubin_world = {};
+                    }
                 }
             }
             for (StageTiming& t : progress.finish()) result.timings.push_back(std::move(t));
