@@ -195,8 +195,13 @@
 /// neighbour sets of the first (its discrete choices; detail::fbs::RunReuse), on the input moved by
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
-/// residual implies exceeds the estimate by 10 %. The cost is a second run of the filters
-/// without the detection or the face filters' neighbour searches, and up to 200 Taubin steps:
+/// residual implies exceeds the estimate by 10 %. Taubin's result is also kept, whatever the
+/// risks, on a mesh too coarse for the filters: when the median angle between neighbouring
+/// faces of Taubin's result exceeds 1.25 d radians (10° at d = 0.14), filter 4 reads the
+/// surface's own bending as features and flattens it into facets (CGAL's eight.off, 634 faces,
+/// at 0.5-0.8|e|: 24-27° against 11-13°; `risk.coarse`). The cost is a second run of the filters
+/// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
+/// Taubin's result at the chosen count:
 /// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
 /// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
