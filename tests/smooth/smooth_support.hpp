@@ -102,25 +102,6 @@ inline ks::IndexedMesh box_mesh(int n) {
     return m;
 }
 
-/// A torus of radii R (core) and r (tube) on an nu × nv grid, two triangles per quad,
-/// outward orientation: a coarse smooth shape when the grid is small (24 × 12: 576 faces,
-/// 15° and 30° between neighbouring rows).
-inline ks::IndexedMesh torus_mesh(int nu, int nv, double R, double r) {
-    ks::IndexedMesh m;
-    for (int i = 0; i < nu; ++i)
-        for (int j = 0; j < nv; ++j) {
-            const double u = 2 * std::numbers::pi * i / nu, v = 2 * std::numbers::pi * j / nv;
-            m.vertices.emplace_back((R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u), r * std::sin(v));
-        }
-    auto id = [&](int i, int j) { return ks::Index(((i + nu) % nu) * nv + (j + nv) % nv); };
-    for (int i = 0; i < nu; ++i)
-        for (int j = 0; j < nv; ++j) {
-            m.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
-            m.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
-        }
-    return m;
-}
-
 /// A closed prism over a regular `sides`-gon of radius 1 and height h (a tessellated
 /// cylinder, as CAD exports it): `rings` rows of side quads, each cap two concentric rows
 /// and a fan, outward orientation. Its sides meet at 360°/sides and the caps at 90°.

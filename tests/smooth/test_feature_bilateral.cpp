@@ -7,6 +7,7 @@
 #include "test_data.hpp"
 #include <doctest/doctest.h>
 
+#include "metrics/mesh_fixtures.hpp"
 #include "smooth_support.hpp"
 
 #include <kintsugi/adapters/cgal.hpp>
@@ -1420,7 +1421,7 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
 
 TEST_CASE("risk selection on coarse meshes: Taubin's result where the filters flatten a curved surface, the filters' on a prism") {
     SUBCASE("a 24 x 12 torus (576 faces) at 0.8|e|: too coarse for the filters, Taubin's result") {
-        const auto clean = ss::torus_mesh(24, 12, 1.0, 0.4);
+        const auto clean = fixtures::torus(24, 12, 1.0, 0.4);
         const double L = ks::mean_edge_length(clean);
         for (std::uint32_t seed : {11u, 12u}) {
             const auto noisy = ss::add_gaussian_noise(clean, 0.8 * L, true, seed);
