@@ -306,7 +306,8 @@ void accuracy_table() {
 // (CGAL's mech-holes-shark, armadillo, bunny00) were never used to choose a default; the
 // Stanford bunny (bun_zipper.ply, 69K faces, 5 open holes) and CGAL's elephant-with-holes
 // (4.5K faces, 106 holes) were added after the face-iteration rule of 2026-12-05, unseen
-// by every choice. Run
+// by every choice; CGAL's eight.off (634 faces, its faces meeting at a median 15.6°) was added
+// when the coarse-mesh rule of the risk selection was set on it (2026-12-06, evening). Run
 // alone with --benchmark_filter=noise_table.
 void BM_noise_table(benchmark::State& state) {
     const fs::path shared = fs::path(KINTSUGI_SHARED_DATA_DIR);
@@ -319,7 +320,8 @@ void BM_noise_table(benchmark::State& state) {
         {"armadillo (h.o.)", shared / "cgal" / "meshes" / "armadillo.off"},
         {"bunny00 (h.o.)", shared / "cgal" / "meshes" / "bunny00.off"},
         {"bun_zipper (h.o.)", shared / "stanford_bunny" / "reconstruction" / "bun_zipper.ply"},
-        {"elephant (h.o.)", shared / "cgal" / "meshes" / "elephant-with-holes.off"}};
+        {"elephant (h.o.)", shared / "cgal" / "meshes" / "elephant-with-holes.off"},
+        {"eight (coarse)", shared / "cgal" / "meshes" / "eight.off"}};
     for (auto _ : state) {
         std::printf("\nnoise table: normal error (deg) / vertex RMS (|e|); sigma estimated / true (|e|)\n");
         std::printf("%-17s %-6s %22s %15s %15s %15s %15s %19s %24s %13s\n", "shape", "noise", "defaults", "filters alone",
