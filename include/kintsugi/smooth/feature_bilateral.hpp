@@ -199,7 +199,7 @@
 /// risks, on a mesh too coarse for the filters: when the median angle between neighbouring
 /// faces of Taubin's result exceeds 1.25 d radians (10° at d = 0.14), filter 4 reads the
 /// surface's own bending as features and flattens it into facets (CGAL's eight.off, 634 faces,
-/// at 0.5-0.8|e|: 24-27° against 11-13°; `risk.coarse`). The cost is a second run of the filters
+/// at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). The cost is a second run of the filters
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
 /// Taubin's result at the chosen count:
 /// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
@@ -432,9 +432,9 @@ struct FeatureBilateralResult {
         /// Estimated rms error along the normals of each result, model units (√(risk / m),
         /// m the moved vertices; 0 where the risk estimate is negative).
         Scalar filters_rms = 0, taubin_rms = 0;
-        /// Taubin's risk was lower but not below risk_ratio times the filters': the median angle
-        /// between neighbouring faces of Taubin's result (radians), and whether it exceeded the
-        /// range scale d as an angle, which keeps Taubin's result (a mesh too coarse for the filters).
+        /// When Taubin's risk was not below risk_ratio times the filters' (0 otherwise): the median
+        /// angle between neighbouring faces of Taubin's result (radians), and whether it exceeded
+        /// detail::fbs::coarse_dihedral · d, which keeps Taubin's result (a mesh too coarse for the filters).
         Scalar median_dihedral = 0;
         bool coarse = false;
         std::string note;                    ///< why it was not evaluated, empty otherwise
@@ -1122,8 +1122,9 @@ inline constexpr Scalar risk_ratio = 0.75;
 /// Taubin's result is also returned when the median angle between its neighbouring faces
 /// exceeds this multiple of the range scale d, in radians (see select_by_risk). Set between
 /// the shapes it must keep for Taubin (CGAL's eight.off, 634 faces, median 15.6-16.4°: filters
-/// 24-27° against Taubin's 11-12° at 0.5-0.8|e|; a 24 × 12 torus, 11.1-11.7°) and a 16-sided
-/// cylinder whose facets the filters keep (up to 8.3°; 1.25 × 0.14 rad = 10.0°).
+/// 24-27° against Taubin's 10-13° at 0.5-0.8|e|; a 24 × 12 torus, 10.9-11.8°) and a 16-sided
+/// prism whose facets the filters keep (up to 8.3°; 1.25 × 0.14 rad = 10.0°). Measured in
+/// docs/methods/feature_bilateral.md ("Coarse meshes").
 inline constexpr Scalar coarse_dihedral = 1.25;
 
 /// The median over the interior edges (two faces) of the angle between the two faces'
