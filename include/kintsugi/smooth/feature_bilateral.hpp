@@ -1127,18 +1127,10 @@ inline constexpr Scalar risk_ratio = 0.75;
 /// docs/methods/feature_bilateral.md ("Coarse meshes").
 inline constexpr Scalar coarse_dihedral = 1.25;
 
-/// The median over the interior edges (two faces) of the angle between the two faces'
-/// normals, in radians; 0 when no such edge has two non-degenerate faces. Degenerate faces
-/// are left out.
-inline Scalar median_dihedral_angle(const std::vector<Vec3>& positions, const MeshTopology& topo) {
-    const auto& faces = topo.faces();
-    std::vector<Vec3> n(faces.size());
-    parallel_for(0, faces.size(), [&](std::size_t f) {
-        const Face& t = faces[f];
-        const Vec3 c = (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
-        const Scalar len = c.norm();
-        n[f] = len > 0 ? Vec3(c / len) : Vec3::Zero();
-    }, 4096);
+/// The median over the interior edges (two faces) of the angle between the two faces' unit
+/// normals `n` (kintsugi::face_normals, indexed as topo's faces), in radians; 0 when no such
+/// edge has two non-degenerate faces. Degenerate faces (zero normals) are left out.
+inline Scalar median_dihedral_angle(const std::vector<Vec3>& n, const MeshTopology& topo) {
     std::vector<Scalar> angles;
     angles.reserve(topo.num_edges());
     for (std::size_t e = 0; e < topo.num_edges(); ++e) {
@@ -1150,10 +1142,7 @@ inline Scalar median_dihedral_angle(const std::vector<Vec3>& positions, const Me
         // atan2 of |a×b| and a·b: accurate near 0 and π, orientation-free for consistent faces.
         angles.push_back(std::atan2(a.cross(b).norm(), a.dot(b)));
     }
-    if (angles.empty()) return 0;
-    auto mid = angles.begin() + static_cast<std::ptrdiff_t>(angles.size() / 2);
-    std::nth_element(angles.begin(), mid, angles.end());
-    return *mid;
+    return angles.empty() ? Scalar(0) : upper_median(std::move(angles));
 }
 /// The selection is skipped when the σ its Taubin residual implies exceeds the estimate by
 /// more than this factor; the sweep covers the least-risk counts of every σ up to it.
@@ -1183,7 +1172,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             throw cancelled_exception{};
     };
     const std::vector<Vec3>* chosen = &filtered.vertices;  // world coordinates
-    std::vector<Vec3> taubin_world;
+    IndexedMesh taubin;  // Taubin's result, in world coordinates when kept
     try {
         auto skip = [&](std::string why) { result.risk.note = std::move(why); };
         if (std::string why = risk_skip_reason(result); !why.empty()) {
@@ -1291,24 +1280,24 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                     // In the input's order, on the input's faces: smooth_taubin's result bit for bit
                     // (the internal order sums each one-ring in another order: ~1e-9|e| apart 1e6 from
                     // the origin).
-                    taubin_world = input.vertices;
-                    frame.to_local(taubin_world);
-                    const MeshTopology input_topo(nv, input.faces);
-                    (void)taubin_smooth(taubin_world, input_topo, {}, TaubinParams{.iterations = k}, progress);
+                    taubin = IndexedMesh{input.vertices, input.faces, {}};
+                    frame.to_local(taubin.vertices);
+                    const MeshTopology input_topo(nv, taubin.faces);
+                    (void)taubin_smooth(taubin.vertices, input_topo, {}, TaubinParams{.iterations = k}, progress);
                     if (!result.risk.taubin) {
                         // Taubin's result is also kept on a mesh too coarse for the filters: where
                         // the median angle θ between neighbouring faces of Taubin's result exceeds
                         // coarse_dihedral·d (radians), a face's plane lies about θ|e| > 1.25 σ_g from the
                         // vertices one edge away, so filter 4 reads the surface's own bending as
                         // features and flattens it into facets, and the filters' risk reads low.
-                        result.risk.median_dihedral = median_dihedral_angle(taubin_world, input_topo);
+                        result.risk.median_dihedral = median_dihedral_angle(kintsugi::face_normals(taubin), input_topo);
                         result.risk.taubin = result.risk.coarse = result.risk.median_dihedral > coarse_dihedral * result.d;
                     }
                     if (result.risk.taubin) {
-                        frame.to_world(taubin_world);
-                        chosen = &taubin_world;
+                        frame.to_world(taubin.vertices);
+                        chosen = &taubin.vertices;
                     } else {
-                        taubin_world = {};
+                        taubin = {};
                     }
                 }
             }
