@@ -204,6 +204,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             rs["taubin_rms"] = r.risk.taubin_rms;
             rs["coarse"] = r.risk.coarse;
             rs["median_dihedral_deg"] = r.risk.median_dihedral * 180 / std::numbers::pi;
+            rs["normal_veto"] = r.risk.normal_veto;
+            rs["normal_difference"] = r.risk.normal_difference;
+            rs["normal_z"] = r.risk.normal_z;
             rs["note"] = r.risk.note;
         }
         j["vertices"] = r.vertices;

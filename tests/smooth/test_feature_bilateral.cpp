@@ -1419,7 +1419,7 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
     }
 }
 
-TEST_CASE("risk selection on coarse meshes: Taubin's result where the filters flatten a curved surface, the filters' on a prism") {
+TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where the filters flatten a curved surface, the filters' on a prism") {
     SUBCASE("a 24 x 12 torus (576 faces) at 0.8|e|: too coarse for the filters, Taubin's result") {
         const auto clean = fixtures::torus(24, 12, 1.0, 0.4);
         const double L = ks::mean_edge_length(clean);
@@ -1469,6 +1469,53 @@ TEST_CASE("risk selection on coarse meshes: Taubin's result where the filters fl
         CHECK(r.risk.median_dihedral < ks::detail::fbs::coarse_dihedral * r.d);
         CHECK(e < 7.0);    // 5.2 measured
         CHECK(et > 12.0);  // 14.2: the facets rounded
+    }
+    SUBCASE("the 16-sided prism where the heights choose Taubin: its face normals estimated far worse, the filters' result") {
+        // Every side vertex lies on a crease and the facets are thin: Taubin's heights are as good as
+        // the filters' (the height risks even favour it), its normals are not.
+        const auto clean = ss::cylinder_mesh(16, 6, 2.0);
+        const double L = ks::mean_edge_length(clean);
+        for (const auto& [k, seed] : {std::pair{0.5, 12u}, std::pair{0.8, 11u}}) {
+            CAPTURE(k);
+            const auto noisy = ss::add_gaussian_noise(clean, k * L, true, seed);
+            auto out = noisy;
+            const auto r = ks::smooth_feature_bilateral(out);
+            REQUIRE(r.status == ks::Status::ok);
+            REQUIRE(r.risk.evaluated);
+            auto filters = noisy, taubin = noisy;
+            (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
+            (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
+            const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+            const double et = ks::denoise_metrics(taubin, clean).mean_normal_angle_deg;
+            MESSAGE("prism 16, " << k << "|e|, seed " << seed << ": " << e << " deg, Taubin " << et << "; normal difference "
+                                 << r.risk.normal_difference << " rad^2 at z " << r.risk.normal_z);
+            CHECK(r.risk.taubin_rms * r.risk.taubin_rms < ks::detail::fbs::risk_ratio * r.risk.filters_rms * r.risk.filters_rms);
+            CHECK(r.risk.normal_veto);
+            CHECK(r.risk.normal_difference > ks::detail::fbs::normal_veto_min);  // 0.087 and 0.073 measured
+            CHECK(r.risk.normal_z > ks::detail::fbs::normal_veto_z);             // 5.2 and 2.8
+            CHECK_FALSE(r.risk.taubin);
+            CHECK_FALSE(r.risk.coarse);
+            CHECK(e < 7.0);    // 5.5 and 5.6
+            CHECK(et > 12.0);  // 15.1 and 16.1
+            for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - filters.vertices[v]).norm() < 1e-12);
+        }
+    }
+    SUBCASE("a 48 x 24 torus (2,304 faces) at 0.5|e|: Taubin's normals estimated better, Taubin's result") {
+        const auto clean = fixtures::torus(48, 24, 1.0, 0.4);
+        const double L = ks::mean_edge_length(clean);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.5 * L, true, 11);
+        auto out = noisy, filters = noisy;
+        const auto r = ks::smooth_feature_bilateral(out);
+        REQUIRE(r.risk.evaluated);
+        (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
+        const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+        const double ef = ks::denoise_metrics(filters, clean).mean_normal_angle_deg;
+        MESSAGE("torus 48x24, 0.5|e|: " << e << " deg, filters " << ef << "; normal difference " << r.risk.normal_difference
+                                        << " rad^2 at z " << r.risk.normal_z);
+        CHECK(r.risk.taubin);
+        CHECK_FALSE(r.risk.normal_veto);
+        CHECK(r.risk.normal_difference < 0);  // -0.0026 measured
+        CHECK(e < ef);                        // 3.5 against 4.1
     }
 }
 

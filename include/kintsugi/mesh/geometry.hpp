@@ -57,15 +57,11 @@ inline Vec3 face_cross(const IndexedMesh& m, Index f) {
     return (m.vertices[t[1]] - a).cross(m.vertices[t[2]] - a);
 }
 
-/// face_cross of face f computed on its corners scaled by 2^-shift, where shift brings the
+/// (b − a) × (c − a) computed on the corners scaled by 2^-shift, where shift brings the
 /// longest edge component near 1, so that neither the products overflow (coordinates
 /// above ~1e154) nor underflow (below ~1e-154). The true cross product is the result
 /// times 2^(2 shift); its direction is exact.
-inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
-    const Face& t = m.faces[f];
-    const Vec3& a = m.vertices[t[0]];
-    const Vec3& b = m.vertices[t[1]];
-    const Vec3& c = m.vertices[t[2]];
+inline Vec3 triangle_cross_scaled(const Vec3& a, const Vec3& b, const Vec3& c, int& shift) {
     const Vec3 u = b / 2 - a / 2, v = c / 2 - a / 2;  // halved: b - a may overflow
     const Scalar big = std::max(u.cwiseAbs().maxCoeff(), v.cwiseAbs().maxCoeff());
     shift = big > 0 && std::isfinite(big) ? std::ilogb(big) + 1 : 0;
@@ -74,6 +70,21 @@ inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
     const Vec3 us = u * s, vs = v * s;
     shift += 1;
     return us.cross(vs);
+}
+
+/// triangle_cross_scaled of face f's corners.
+inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
+    const Face& t = m.faces[f];
+    return triangle_cross_scaled(m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]], shift);
+}
+
+/// Unit normal of the triangle (a, b, c) (right-hand rule), at any magnitude; the zero
+/// vector when it is degenerate or not finite.
+inline Vec3 unit_triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) {
+    int shift = 0;
+    const Vec3 x = triangle_cross_scaled(a, b, c, shift);
+    const Scalar n = x.norm();
+    return n > 0 && std::isfinite(n) ? Vec3(x / n) : Vec3::Zero();
 }
 
 }  // namespace detail
@@ -91,10 +102,8 @@ inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
             throw invalid_input("kintsugi::face_normal: face " + std::to_string(f) + " uses vertex " +
                                 std::to_string(m.faces[f][k]) + " but the mesh has " +
                                 std::to_string(m.vertices.size()) + " vertices; fix the face");
-    int shift = 0;
-    const Vec3 c = detail::face_cross_scaled(m, f, shift);
-    const Scalar n = c.norm();
-    return n > 0 && std::isfinite(n) ? Vec3(c / n) : Vec3::Zero();
+    const Face& t = m.faces[f];
+    return detail::unit_triangle_normal(m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]);
 }
 
 /// @brief Unit normals of all faces (zero for degenerate faces).
@@ -103,10 +112,8 @@ inline Vec3 face_cross_scaled(const IndexedMesh& m, Index f, int& shift) {
     detail::check_face_indices(m, "kintsugi::face_normals");
     std::vector<Vec3> out(m.faces.size());
     for (std::size_t f = 0; f < m.faces.size(); ++f) {
-        int shift = 0;
-        const Vec3 c = detail::face_cross_scaled(m, f, shift);
-        const Scalar n = c.norm();
-        out[f] = n > 0 && std::isfinite(n) ? Vec3(c / n) : Vec3::Zero();
+        const Face& t = m.faces[f];
+        out[f] = detail::unit_triangle_normal(m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]);
     }
     return out;
 }

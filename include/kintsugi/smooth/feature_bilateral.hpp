@@ -437,6 +437,12 @@ struct FeatureBilateralResult {
         /// detail::fbs::coarse_dihedral · d, which keeps Taubin's result (a mesh too coarse for the filters).
         Scalar median_dihedral = 0;
         bool coarse = false;
+        /// When Taubin's risk was below risk_ratio times the filters' (0 otherwise): Taubin's mean
+        /// squared face-normal error minus the filters', estimated (rad² per face), the estimate
+        /// over its standard error, and whether it kept the filters' result (above
+        /// detail::fbs::normal_veto_min at more than normal_veto_z standard errors: a faceted shape).
+        Scalar normal_difference = 0, normal_z = 0;
+        bool normal_veto = false;
         std::string note;                    ///< why it was not evaluated, empty otherwise
     } risk{};
     /// Whether the input's noise read as impulsive (remove_impulses' gate passed;
@@ -1127,6 +1133,66 @@ inline constexpr Scalar risk_ratio = 0.75;
 /// docs/methods/feature_bilateral.md ("Coarse meshes").
 inline constexpr Scalar coarse_dihedral = 1.25;
 
+/// Taubin's result is not returned, whatever the height risks, when its mean squared face-normal
+/// error is estimated (normal_risk_difference) above the filters' by more than normal_veto_min
+/// (rad² per face, about (10°)²) at more than normal_veto_z standard errors. Set on a 16-sided
+/// prism (352 faces; Taubin's result 12-17° on its thin facets against the filters' 5-8°,
+/// estimated +0.079 to +0.21 at z 2.9-12.8 where the height risks chose Taubin), bun_zipper_res4
+/// and CGAL's eight.off (Taubin better: at most +0.038 at z 1.2, or z 0.8 at +0.042).
+/// Measured in docs/methods/feature_bilateral.md ("Faceted shapes").
+inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
+
+/// What normal_risk_difference returns: the estimated mean over the faces, and that mean over
+/// its standard error (0 below 4 blocks).
+struct NormalRiskDifference {
+    Scalar mean = 0, z = 0;
+};
+
+/// Monte-Carlo SURE of the mean squared face-normal error of a result A minus that of a result
+/// B, from the noisy input alone. |n̂ − n_x|² = 2 − 2 n̂·n_x, and to first order (Stein)
+/// E n̂·n_y = n_x·E n̂ + σ² tr(J_n̂ᵀ J_y), n_y the input's face normal; the trace comes from one
+/// probe δ: (n̂(y + δ) − n̂(y))·(n_y(y + δ) − n_y(y)) / `probe_variance` · σ². Per face:
+///   −2 (n_A − n_B)·n_y + 2 σ²/probe_variance ((Δn_A − Δn_B)·Δn_y).
+/// `corner(i, v)` is vertex v's position (input index) in: 0 the input, 1 the input + δ,
+/// 2 A, 3 A on the input + δ, 4 B, 5 B on the input + δ. Faces with a degenerate normal in
+/// the input, A or B are left out. The standard error: batch means over blocks of faces
+/// ordered by `key` of their first corner (a spatial order), as adjacent faces' terms correlate.
+template <class Corner>
+NormalRiskDifference normal_risk_difference(const std::vector<Face>& faces, const Corner& corner, Scalar sigma2_over_probe,
+                                            const std::vector<Index>& key) {
+    std::vector<std::pair<Index, Scalar>> terms;  // (key, the face's term)
+    terms.reserve(faces.size());
+    for (const Face& t : faces) {
+        auto normal = [&](int i) { return unit_triangle_normal(corner(i, t[0]), corner(i, t[1]), corner(i, t[2])); };
+        const Vec3 ny = normal(0), na = normal(2), nb = normal(4);
+        if (ny.squaredNorm() == 0 || na.squaredNorm() == 0 || nb.squaredNorm() == 0) continue;
+        const Vec3 dy = normal(1) - ny, da = normal(3) - na, db = normal(5) - nb;
+        terms.emplace_back(key[t[0]], -2 * (na - nb).dot(ny) + 2 * sigma2_over_probe * (da - db).dot(dy));
+    }
+    NormalRiskDifference out;
+    if (terms.empty()) return out;
+    std::stable_sort(terms.begin(), terms.end(), [](const auto& p, const auto& q) { return p.first < q.first; });
+    const std::size_t n = terms.size();
+    const std::size_t block = std::clamp<std::size_t>(n / 16, 16, 64);
+    std::vector<Scalar> sums;  // the full blocks'
+    Scalar total = 0, sum = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        total += terms[i].second;
+        sum += terms[i].second;
+        if ((i + 1) % block == 0) sums.push_back(sum), sum = 0;
+    }
+    out.mean = total / static_cast<Scalar>(n);
+    if (sums.size() < 4) return out;
+    Scalar mean = 0, var = 0;
+    for (Scalar b : sums) mean += b;
+    mean /= static_cast<Scalar>(sums.size());
+    for (Scalar b : sums) var += (b - mean) * (b - mean);
+    var /= static_cast<Scalar>(sums.size() - 1);
+    const Scalar se = std::sqrt(var * static_cast<Scalar>(n) / static_cast<Scalar>(block));  // of the total
+    out.z = se > 0 ? total / se : 0;
+    return out;
+}
+
 /// The median over the interior edges (two faces) of the angle between the two faces' unit
 /// normals `n` (kintsugi::face_normals, indexed as topo's faces), in radians; 0 when no such
 /// edge has two non-degenerate faces. Degenerate faces (zero normals) are left out.
@@ -1284,6 +1350,36 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                     frame.to_local(taubin.vertices);
                     const MeshTopology input_topo(nv, taubin.faces);
                     (void)taubin_smooth(taubin.vertices, input_topo, {}, TaubinParams{.iterations = k}, progress);
+                    if (result.risk.taubin) {
+                        // The heights chose Taubin; its face normals may still be far worse (thin
+                        // facets of a prism, every vertex on a crease: alike heights, 12-17° against
+                        // 5-8°). Both normal errors estimated from the same probe as the filters'
+                        // divergence; Taubin on the probe's input, in the input's order.
+                        std::vector<Vec3> probe_taubin(nv);
+                        for (std::size_t v = 0; v < nv; ++v) {
+                            const Index kv = so.order[v];
+                            probe_taubin[v] = y[kv] + eps * sigma * z[v] * normals[kv];
+                        }
+                        (void)taubin_smooth(probe_taubin, input_topo, {}, TaubinParams{.iterations = k}, progress);
+                        auto corner = [&](int i, Index v) -> Vec3 {
+                            const Index kv = so.order[v];
+                            switch (i) {
+                                case 0: return y[kv];
+                                case 1: return y[kv] + eps * sigma * z[v] * normals[kv];
+                                case 2: return taubin.vertices[v];
+                                case 3: return probe_taubin[v];
+                                case 4: return f[kv];
+                                default: return frame.to_local(perturbed.vertices[v]);
+                            }
+                        };
+                        // The probe's variance per counted vertex is (eps σ)²; the noise's is s².
+                        const NormalRiskDifference nd =
+                            normal_risk_difference(input.faces, corner, (s * s) / (eps * eps * sigma * sigma), so.order);
+                        result.risk.normal_difference = nd.mean;
+                        result.risk.normal_z = nd.z;
+                        result.risk.normal_veto = nd.mean > normal_veto_min && nd.z > normal_veto_z;
+                        result.risk.taubin = !result.risk.normal_veto;
+                    }
                     if (!result.risk.taubin) {
                         // Taubin's result is also kept on a mesh too coarse for the filters: where
                         // the median angle θ between neighbouring faces of Taubin's result exceeds
