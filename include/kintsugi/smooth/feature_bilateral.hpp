@@ -195,13 +195,21 @@
 /// neighbour sets of the first (its discrete choices; detail::fbs::RunReuse), on the input moved by
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
-/// residual implies exceeds the estimate by 10 %. Taubin's result is also kept, whatever the
+/// residual implies exceeds the estimate by 10 %. Heights can favour Taubin where its normals
+/// are far worse: on a prism whose vertices all lie on creases between thin facets, small
+/// residual moves turn the faces (16 sides: 15-16° against the filters' 5.5°). So when the
+/// heights choose Taubin, both mean squared face-normal errors are estimated too, by the same
+/// Monte-Carlo SURE on the same probe (n̂·n_y less its covariance with the input's face normals
+/// n_y; detail::fbs::normal_risk_difference), and Taubin's result is not returned when its
+/// estimate exceeds the filters' by more than 0.03 rad² at more than 2.5 standard errors
+/// (`risk.normal_veto`; prisms of 12-40 sides: 7.7-16.8° → 2.0-6.0° in 36 of 39 such cells,
+/// no organic shape measured reaches it). Taubin's result is also kept, whatever the
 /// risks, on a mesh too coarse for the filters: when the median angle between neighbouring
 /// faces of Taubin's result exceeds 1.25 d radians (10° at d = 0.14), filter 4 reads the
 /// surface's own bending as features and flattens it into facets (CGAL's eight.off, 634 faces,
 /// at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). The cost is a second run of the filters
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
-/// Taubin's result at the chosen count:
+/// Taubin's result at the chosen count (twice, with the probe, when the heights choose it):
 /// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
 /// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection").
 ///
@@ -329,7 +337,8 @@ struct FeatureBilateralParams {
     Scalar lowpass_noise = 0.2;
     /// Also run Taubin smoothing (detail::taubin_risk_curves, at most
     /// `risk_taubin_max_iterations` pairs) and return its result when its estimated error along
-    /// the normals is below 0.75 times the filters' (squared errors; "Risk selection" above). Default true:
+    /// the normals is below 0.75 times the filters' (squared errors) and its face normals are not
+    /// estimated far worse ("Risk selection" above). Default true:
     /// on smooth organic shapes Taubin wins (fertility at 0.3|e|: 8.9° → 5.7°), and the noise table is
     /// behind the best Taubin in 11 of 54 cells instead of 26 (6 with the impulse removal too); false
     /// (the `paper` preset): the filters'
@@ -432,7 +441,7 @@ struct FeatureBilateralResult {
         /// Estimated rms error along the normals of each result, model units (√(risk / m),
         /// m the moved vertices; 0 where the risk estimate is negative).
         Scalar filters_rms = 0, taubin_rms = 0;
-        /// When Taubin's risk was not below risk_ratio times the filters' (0 otherwise): the median
+        /// When Taubin's result was not chosen by the risks (0 otherwise): the median
         /// angle between neighbouring faces of Taubin's result (radians), and whether it exceeded
         /// detail::fbs::coarse_dihedral · d, which keeps Taubin's result (a mesh too coarse for the filters).
         Scalar median_dihedral = 0;
@@ -1136,10 +1145,10 @@ inline constexpr Scalar coarse_dihedral = 1.25;
 /// Taubin's result is not returned, whatever the height risks, when its mean squared face-normal
 /// error is estimated (normal_risk_difference) above the filters' by more than normal_veto_min
 /// (rad² per face, about (10°)²) at more than normal_veto_z standard errors. Set on a 16-sided
-/// prism (352 faces; Taubin's result 12-17° on its thin facets against the filters' 5-8°,
-/// estimated +0.079 to +0.21 at z 2.9-12.8 where the height risks chose Taubin), bun_zipper_res4
-/// and CGAL's eight.off (Taubin better: at most +0.038 at z 1.2, or z 0.8 at +0.042).
-/// Measured in docs/methods/feature_bilateral.md ("Faceted shapes").
+/// prism (352 faces; where the height risks chose Taubin, 8.7-16.1° against the filters'
+/// 5.5-6.0°: estimated +0.035 to +0.087 at z 2.8-6.4) against bun_zipper_res4 and CGAL's
+/// eight.off, where Taubin is better (z at most 0.94 and 0.61). Seeds 11-13, 0.1-0.8|e|;
+/// held-out shapes in docs/methods/feature_bilateral.md ("Faceted shapes").
 inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
 
 /// What normal_risk_difference returns: the estimated mean over the faces, and that mean over
@@ -1355,6 +1364,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         // facets of a prism, every vertex on a crease: alike heights, 12-17° against
                         // 5-8°). Both normal errors estimated from the same probe as the filters'
                         // divergence; Taubin on the probe's input, in the input's order.
+                        const auto t2 = std::chrono::steady_clock::now();
                         std::vector<Vec3> probe_taubin(nv);
                         for (std::size_t v = 0; v < nv; ++v) {
                             const Index kv = so.order[v];
@@ -1379,6 +1389,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         result.risk.normal_z = nd.z;
                         result.risk.normal_veto = nd.mean > normal_veto_min && nd.z > normal_veto_z;
                         result.risk.taubin = !result.risk.normal_veto;
+                        result.timings.push_back({"risk: face-normal estimate",
+                                                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count()});
                     }
                     if (!result.risk.taubin) {
                         // Taubin's result is also kept on a mesh too coarse for the filters: where
