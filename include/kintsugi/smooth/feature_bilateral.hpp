@@ -211,7 +211,8 @@
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
 /// Taubin's result at the chosen count (twice, with the probe, when the heights choose it):
 /// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
-/// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection").
+/// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
+/// meshes", "Faceted shapes").
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
