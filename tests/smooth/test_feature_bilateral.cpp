@@ -1500,6 +1500,24 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
             for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - filters.vertices[v]).norm() < 1e-12);
         }
     }
+    SUBCASE("a 12-sided prism (216 faces) at 0.7|e|: coarse for the filters, yet Taubin's normals estimated far worse") {
+        const auto clean = ss::cylinder_mesh(12, 4, 1.5);
+        const double L = ks::mean_edge_length(clean);
+        const auto noisy = ss::add_gaussian_noise(clean, 0.7 * L, true, 13);
+        auto out = noisy, taubin = noisy;
+        const auto r = ks::smooth_feature_bilateral(out);
+        REQUIRE(r.risk.evaluated);
+        (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
+        const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+        const double et = ks::denoise_metrics(taubin, clean).mean_normal_angle_deg;
+        MESSAGE("prism 12, 0.7|e|: " << e << " deg, Taubin " << et << "; median angle " << r.risk.median_dihedral * 180 / std::numbers::pi
+                                     << " deg; normal difference " << r.risk.normal_difference << " rad^2 at z " << r.risk.normal_z);
+        CHECK(r.risk.coarse);  // the median angle alone would keep Taubin's result
+        CHECK(r.risk.normal_veto);
+        CHECK_FALSE(r.risk.taubin);
+        CHECK(e < 7.0);    // 5.6 measured
+        CHECK(et > 15.0);  // 19.8
+    }
     SUBCASE("a 48 x 24 torus (2,304 faces) at 0.5|e|: Taubin's normals estimated better, Taubin's result") {
         const auto clean = fixtures::torus(48, 24, 1.0, 0.4);
         const double L = ks::mean_edge_length(clean);

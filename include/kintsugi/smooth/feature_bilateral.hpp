@@ -444,10 +444,11 @@ struct FeatureBilateralResult {
         Scalar filters_rms = 0, taubin_rms = 0;
         /// When Taubin's result was not chosen by the risks (0 otherwise): the median
         /// angle between neighbouring faces of Taubin's result (radians), and whether it exceeded
-        /// detail::fbs::coarse_dihedral · d, which keeps Taubin's result (a mesh too coarse for the filters).
+        /// detail::fbs::coarse_dihedral · d, which keeps Taubin's result (a mesh too coarse for the
+        /// filters) unless `normal_veto`.
         Scalar median_dihedral = 0;
         bool coarse = false;
-        /// When Taubin's risk was below risk_ratio times the filters' (0 otherwise): Taubin's mean
+        /// When the heights (risk ratio) or the coarseness chose Taubin (0 otherwise): Taubin's mean
         /// squared face-normal error minus the filters', estimated (rad² per face), the estimate
         /// over its standard error, and whether it kept the filters' result (above
         /// detail::fbs::normal_veto_min at more than normal_veto_z standard errors: a faceted shape).
@@ -1360,11 +1361,20 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                     frame.to_local(taubin.vertices);
                     const MeshTopology input_topo(nv, taubin.faces);
                     (void)taubin_smooth(taubin.vertices, input_topo, {}, TaubinParams{.iterations = k}, progress);
+                    if (!result.risk.taubin) {
+                        // Taubin's result is also kept on a mesh too coarse for the filters: where
+                        // the median angle θ between neighbouring faces of Taubin's result exceeds
+                        // coarse_dihedral·d (radians), a face's plane lies about θ|e| > 1.25 σ_g from the
+                        // vertices one edge away, so filter 4 reads the surface's own bending as
+                        // features and flattens it into facets, and the filters' risk reads low.
+                        result.risk.median_dihedral = median_dihedral_angle(kintsugi::face_normals(taubin), input_topo);
+                        result.risk.taubin = result.risk.coarse = result.risk.median_dihedral > coarse_dihedral * result.d;
+                    }
                     if (result.risk.taubin) {
-                        // The heights chose Taubin; its face normals may still be far worse (thin
-                        // facets of a prism, every vertex on a crease: alike heights, 12-17° against
-                        // 5-8°). Both normal errors estimated from the same probe as the filters'
-                        // divergence; Taubin on the probe's input, in the input's order.
+                        // The heights or the coarseness chose Taubin; its face normals may still be
+                        // far worse (thin facets of a prism, every vertex on a crease: alike heights,
+                        // 12-17° against 5-8°). Both normal errors estimated from the same probe as
+                        // the filters' divergence; Taubin on the probe's input, in the input's order.
                         const auto t2 = std::chrono::steady_clock::now();
                         std::vector<Vec3> probe_taubin(nv);
                         for (std::size_t v = 0; v < nv; ++v) {
@@ -1392,15 +1402,6 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         result.risk.taubin = !result.risk.normal_veto;
                         result.timings.push_back({"risk: face-normal estimate",
                                                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count()});
-                    }
-                    if (!result.risk.taubin) {
-                        // Taubin's result is also kept on a mesh too coarse for the filters: where
-                        // the median angle θ between neighbouring faces of Taubin's result exceeds
-                        // coarse_dihedral·d (radians), a face's plane lies about θ|e| > 1.25 σ_g from the
-                        // vertices one edge away, so filter 4 reads the surface's own bending as
-                        // features and flattens it into facets, and the filters' risk reads low.
-                        result.risk.median_dihedral = median_dihedral_angle(kintsugi::face_normals(taubin), input_topo);
-                        result.risk.taubin = result.risk.coarse = result.risk.median_dihedral > coarse_dihedral * result.d;
                     }
                     if (result.risk.taubin) {
                         frame.to_world(taubin.vertices);
