@@ -197,19 +197,20 @@
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. Heights can favour Taubin where its normals
 /// are far worse: on a prism whose vertices all lie on creases between thin facets, small
-/// residual moves turn the faces (16 sides: 15-16° against the filters' 5.5°). So when the
-/// heights choose Taubin, both mean squared face-normal errors are estimated too, by the same
-/// Monte-Carlo SURE on the same probe (n̂·n_y less its covariance with the input's face normals
-/// n_y; detail::fbs::normal_risk_difference), and Taubin's result is not returned when its
-/// estimate exceeds the filters' by more than 0.03 rad² at more than 2.5 standard errors
-/// (`risk.normal_veto`; prisms of 12-40 sides: 7.7-16.8° → 2.0-6.0° in 36 of 39 such cells,
-/// no organic shape measured reaches it). Taubin's result is also kept, whatever the
-/// risks, on a mesh too coarse for the filters: when the median angle between neighbouring
-/// faces of Taubin's result exceeds 1.25 d radians (10° at d = 0.14), filter 4 reads the
-/// surface's own bending as features and flattens it into facets (CGAL's eight.off, 634 faces,
-/// at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). The cost is a second run of the filters
+/// residual moves turn the faces (16 sides: 15-16° against the filters' 5.5°). Taubin's result
+/// is also kept, whatever the height risks, on a mesh too coarse for the filters: when the
+/// median angle between neighbouring faces of Taubin's result exceeds 1.25 d radians (10° at
+/// d = 0.14), filter 4 reads the surface's own bending as features and flattens it into facets
+/// (CGAL's eight.off, 634 faces, at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). Whenever
+/// the heights or the coarseness choose Taubin, both mean squared face-normal errors are
+/// estimated too, by the same Monte-Carlo SURE on the same probe (n̂·n_y less its covariance
+/// with the input's face normals n_y; detail::fbs::normal_risk_difference), and Taubin's result
+/// is not returned when its estimate exceeds the filters' by more than 0.03 rad² at more than
+/// 2.5 standard errors (`risk.normal_veto`; generated prisms of 8-40 sides: 60 of the 74 cells
+/// where Taubin had been chosen, 7.7-20.9° → 2.0-7.6°, one wrongly by 0.5°; no organic shape
+/// measured reaches the bound). The cost is a second run of the filters
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
-/// Taubin's result at the chosen count (twice, with the probe, when the heights choose it):
+/// Taubin's result at the chosen count (twice, with the probe, when it is chosen):
 /// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
 /// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
 /// meshes", "Faceted shapes").
