@@ -131,12 +131,12 @@ inline ks::IndexedMesh cylinder_mesh(int sides, int rings, double h) {
             }
             for (int i = 0; i < sides; ++i) {
                 const ks::Index a = outer[i], b = outer[(i + 1) % sides], c = inner[i], d = inner[(i + 1) % sides];
-                if (top) {
-                    m.faces.push_back({a, c, b});
-                    m.faces.push_back({b, c, d});
-                } else {
+                if (top) {  // outward: +z on top, −z below (the side faces' winding)
                     m.faces.push_back({a, b, c});
                     m.faces.push_back({b, d, c});
+                } else {
+                    m.faces.push_back({a, c, b});
+                    m.faces.push_back({b, c, d});
                 }
             }
             outer = inner;
@@ -144,7 +144,7 @@ inline ks::IndexedMesh cylinder_mesh(int sides, int rings, double h) {
         m.vertices.emplace_back(0, 0, z);
         const ks::Index c = ks::Index(m.vertices.size() - 1);
         for (int i = 0; i < sides; ++i)
-            m.faces.push_back(top ? ks::Face{outer[i], c, outer[(i + 1) % sides]} : ks::Face{outer[i], outer[(i + 1) % sides], c});
+            m.faces.push_back(top ? ks::Face{outer[i], outer[(i + 1) % sides], c} : ks::Face{outer[i], c, outer[(i + 1) % sides]});
     }
     return m;
 }
