@@ -197,7 +197,8 @@
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
 /// residual implies exceeds the estimate by 10 %. Heights can favour Taubin where its normals
 /// are far worse: on a prism whose vertices all lie on creases between thin facets, small
-/// residual moves turn the faces (16 sides: 15-16° against the filters' 5.5°). Taubin's result
+/// residual moves turn the faces (16 sides, caps wound against the sides: 15-16° against the
+/// filters' 5.5°). Taubin's result
 /// is also kept, whatever the height risks, on a mesh too coarse for the filters: when the
 /// median angle between neighbouring faces of Taubin's result exceeds 1.25 d radians (10° at
 /// d = 0.14), filter 4 reads the surface's own bending as features and flattens it into facets
@@ -206,8 +207,10 @@
 /// estimated too, by the same Monte-Carlo SURE on the same probe (n̂·n_y less its covariance
 /// with the input's face normals n_y; detail::fbs::normal_risk_difference), and Taubin's result
 /// is not returned when its estimate exceeds the filters' by more than 0.03 rad² at more than
-/// 2.5 standard errors (`risk.normal_veto`; generated prisms of 8-40 sides: 60 of the 74 cells
-/// where Taubin had been chosen, 7.7-20.9° → 2.0-7.6°, one wrongly by 0.5°; no organic shape
+/// 2.5 standard errors (`risk.normal_veto`; generated prisms of 8-40 sides with their caps
+/// wound against their sides: 60 of the 74 cells where Taubin had been chosen, 7.7-20.9° →
+/// 2.0-7.6°, one wrongly by 0.5°; consistently oriented: 4 of 53, 13-16° → 4.5-10°, and 21 of
+/// 120 cells still return Taubin's result where the filters' is better; no organic shape
 /// measured reaches the bound). The cost is a second run of the filters
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
 /// Taubin's result at the chosen count (twice, with the probe, when it is chosen):
@@ -1148,8 +1151,9 @@ inline constexpr Scalar coarse_dihedral = 1.25;
 /// Taubin's result is not returned, whatever the height risks, when its mean squared face-normal
 /// error is estimated (normal_risk_difference) above the filters' by more than normal_veto_min
 /// (rad² per face, about (10°)²) at more than normal_veto_z standard errors. Set on a 16-sided
-/// prism (352 faces; where the height risks chose Taubin, 8.7-16.1° against the filters'
-/// 5.5-6.0°: estimated +0.035 to +0.087 at z 2.8-6.4) against bun_zipper_res4 and CGAL's
+/// prism with its caps wound against its sides (352 faces; where the height risks chose Taubin,
+/// 8.7-16.1° against the filters' 5.5-6.0°: estimated +0.035 to +0.087 at z 2.8-6.4) against
+/// bun_zipper_res4 and CGAL's
 /// eight.off, where Taubin is better (z at most 0.94 and 0.61). Seeds 11-13, 0.1-0.8|e|;
 /// held-out shapes in docs/methods/feature_bilateral.md ("Faceted shapes").
 inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
