@@ -198,8 +198,8 @@
 /// residual implies exceeds the estimate by 10 %. Heights can favour Taubin where its normals
 /// are far worse: on a prism whose vertices all lie on creases between thin facets, small
 /// residual moves turn the faces (16 sides, caps wound against the sides: 15-16° against the
-/// filters' 5.5°). Taubin's result
-/// is also kept, whatever the height risks, on a mesh too coarse for the filters: when the
+/// filters' 5.5°). Taubin's result is also kept, whatever the height risks, on a mesh too
+/// coarse for the filters: when the
 /// median angle between neighbouring faces of Taubin's result exceeds 1.25 d radians (10° at
 /// d = 0.14), filter 4 reads the surface's own bending as features and flattens it into facets
 /// (CGAL's eight.off, 634 faces, at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). Whenever
@@ -1167,8 +1167,9 @@ struct NormalRiskDifference {
 /// Monte-Carlo SURE of the mean squared face-normal error of a result A minus that of a result
 /// B, from the noisy input alone. |n̂ − n_x|² = 2 − 2 n̂·n_x, and to first order (Stein)
 /// E n̂·n_y = n_x·E n̂ + σ² tr(J_n̂ᵀ J_y), n_y the input's face normal; the trace comes from one
-/// probe δ: (n̂(y + δ) − n̂(y))·(n_y(y + δ) − n_y(y)) / `probe_variance` · σ². Per face:
-///   −2 (n_A − n_B)·n_y + 2 σ²/probe_variance ((Δn_A − Δn_B)·Δn_y).
+/// probe δ of variance p² per vertex: σ²/p² · (n̂(y + δ) − n̂(y))·(n_y(y + δ) − n_y(y)). Per face,
+/// with `sigma2_over_probe` = σ²/p²:
+///   −2 (n_A − n_B)·n_y + 2 σ²/p² ((Δn_A − Δn_B)·Δn_y).
 /// `corner(i, v)` is vertex v's position (input index) in: 0 the input, 1 the input + δ,
 /// 2 A, 3 A on the input + δ, 4 B, 5 B on the input + δ. Faces with a degenerate normal in
 /// the input, A or B are left out. The standard error: batch means over blocks of faces
