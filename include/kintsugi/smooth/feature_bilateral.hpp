@@ -1287,12 +1287,16 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             fixed.control = part_control(params.control, 0.4, 0.8, last);
             std::vector<Scalar> z(nv, 0);  // by input index: the draws do not depend on the order
             std::uint64_t state = 0xD1B54A32D192ED03ull;
+            // The probe's input at input vertex v, local coordinates (z[v] drawn first).
+            auto probe_input = [&](std::size_t v) -> Vec3 {
+                const Index k = so.order[v];
+                return y[k] + eps * sigma * z[v] * normals[k];
+            };
             IndexedMesh perturbed{input.vertices, input.faces, {}};
             for (std::size_t v = 0; v < nv; ++v) {
                 state = state * 6364136223846793005ull + 1442695040888963407ull;
-                const Index k = so.order[v];
-                z[v] = counted[k] ? ((state >> 63) ? 1 : -1) : 0;
-                perturbed.vertices[v] = frame.to_world(y[k] + eps * sigma * z[v] * normals[k]);
+                z[v] = counted[so.order[v]] ? ((state >> 63) ? 1 : -1) : 0;
+                perturbed.vertices[v] = frame.to_world(probe_input(v));
             }
             // The first run's sharp edges, not a new detection: the divergence is a derivative,
             // which the detection's discrete choices do not have (a flipped edge would count).
@@ -1383,19 +1387,15 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         // the filters' divergence; Taubin on the probe's input, in the input's order.
                         const auto t2 = std::chrono::steady_clock::now();
                         std::vector<Vec3> probe_taubin(nv);
-                        for (std::size_t v = 0; v < nv; ++v) {
-                            const Index kv = so.order[v];
-                            probe_taubin[v] = y[kv] + eps * sigma * z[v] * normals[kv];
-                        }
+                        for (std::size_t v = 0; v < nv; ++v) probe_taubin[v] = probe_input(v);
                         (void)taubin_smooth(probe_taubin, input_topo, {}, TaubinParams{.iterations = k}, progress);
                         auto corner = [&](int i, Index v) -> Vec3 {
-                            const Index kv = so.order[v];
                             switch (i) {
-                                case 0: return y[kv];
-                                case 1: return y[kv] + eps * sigma * z[v] * normals[kv];
+                                case 0: return y[so.order[v]];
+                                case 1: return probe_input(v);
                                 case 2: return taubin.vertices[v];
                                 case 3: return probe_taubin[v];
-                                case 4: return f[kv];
+                                case 4: return f[so.order[v]];
                                 default: return frame.to_local(perturbed.vertices[v]);
                             }
                         };
