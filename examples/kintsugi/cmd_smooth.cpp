@@ -207,6 +207,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             rs["normal_veto"] = r.risk.normal_veto;
             rs["normal_difference"] = r.risk.normal_difference;
             rs["normal_z"] = r.risk.normal_z;
+            rs["recheck"] = r.risk.recheck;
+            rs["recheck_probes"] = r.risk.recheck_probes;
+            rs["filters_rms_recheck"] = r.risk.filters_rms_recheck;
             rs["note"] = r.risk.note;
         }
         j["vertices"] = r.vertices;
@@ -220,11 +223,16 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["mean_edge_length"] = r.features.mean_edge_length;
         if (!o->features.empty()) j["features"] = o->features;
         std::string how;
-        if (params.risk_selection)
-            how = r.risk.taubin ? ", Taubin's result kept (" + std::to_string(r.risk.taubin_iterations) +
-                                      (r.risk.coarse ? " steps; a mesh too coarse for the filters)" : " steps; lower estimated error)")
-                  : r.risk.evaluated ? ", the filters' result kept (lower estimated error)"
-                                     : ", the filters' result kept (risks not compared: " + r.risk.note + ")";
+        if (params.risk_selection) {
+            const std::string steps = std::to_string(r.risk.taubin_iterations) + " steps; ";
+            how = r.risk.taubin ? ", Taubin's result kept (" + steps +
+                                      (r.risk.coarse     ? "a mesh too coarse for the filters)"
+                                       : r.risk.recheck ? "lower estimated error once the filters' sharp edges were detected again on the probes)"
+                                                        : "lower estimated error)")
+                  : r.risk.normal_veto ? ", the filters' result kept (Taubin's face normals estimated far worse)"
+                  : r.risk.evaluated   ? ", the filters' result kept (lower estimated error)"
+                                       : ", the filters' result kept (risks not compared: " + r.risk.note + ")";
+        }
         if (r.impulse_vertices > 0)
             how += "; " + std::to_string(r.impulse_vertices) + " vertices moved by impulsive noise put back";
         else if (r.impulses_dense)

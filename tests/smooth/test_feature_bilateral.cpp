@@ -1449,6 +1449,42 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
             for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - taubin.vertices[v]).norm() == 0);
         }
     }
+    SUBCASE("a 30 x 15 torus (900 faces) at 0.5-0.8|e|: the filters' risk read again with the detection on the probes; Taubin's result") {
+        // Below the coarseness bound, and the frozen estimate favours the filters (they flatten
+        // the bending into facets along detected creases that follow the noise).
+        const auto clean = fixtures::torus(30, 15);
+        const double L = ks::mean_edge_length(clean);
+        for (const double k : {0.5, 0.7, 0.8}) {
+            CAPTURE(k);
+            const auto noisy = ss::add_gaussian_noise(clean, k * L, true, 11);
+            auto out = noisy;
+            const auto r = ks::smooth_feature_bilateral(out);
+            REQUIRE(r.status == ks::Status::ok);
+            REQUIRE(r.risk.evaluated);
+            auto filters = noisy, taubin = noisy;
+            (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
+            (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
+            const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+            const double ef = ks::denoise_metrics(filters, clean).mean_normal_angle_deg;
+            const double ratio = r.risk.taubin_rms * r.risk.taubin_rms / (r.risk.filters_rms * r.risk.filters_rms);
+            const double again = r.risk.taubin_rms * r.risk.taubin_rms / (r.risk.filters_rms_recheck * r.risk.filters_rms_recheck);
+            MESSAGE("torus 30x15, " << k << "|e|: " << e << " deg (Taubin, " << r.risk.taubin_iterations << " steps), filters " << ef
+                                    << "; median angle " << r.risk.median_dihedral / r.d << " d; risk ratio " << ratio
+                                    << ", with the detection on " << r.risk.recheck_probes << " probes " << again);
+            CHECK(ratio > ks::detail::fbs::risk_ratio);  // 1.09, 3.46, 0.88: the frozen estimate keeps the filters
+            CHECK_FALSE(r.risk.coarse);
+            CHECK(r.risk.median_dihedral > ks::detail::fbs::recheck_dihedral * r.d);
+            CHECK(r.risk.recheck_probes == ks::detail::fbs::recheck_max_probes);
+            CHECK(r.risk.filters_rms_recheck > 1.25 * r.risk.filters_rms);  // 2.0, 3.1, 1.4 times
+            CHECK(again < ks::detail::fbs::recheck_ratio);  // 0.28, 0.35, 0.48
+            CHECK(r.risk.recheck);
+            CHECK_FALSE(r.risk.normal_veto);
+            CHECK(r.risk.taubin);
+            CHECK(e < 9.0);    // 6.2, 7.6, 8.4 measured
+            CHECK(ef > 18.0);  // 19.7, 21.9, 22.6
+            for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - taubin.vertices[v]).norm() == 0);
+        }
+    }
     SUBCASE("a 16-sided prism (352 faces) at 0.7|e|: not coarse, the filters' result") {
         const auto clean = ss::cylinder_mesh(16, 6, 2.0);
         const double L = ks::mean_edge_length(clean);
@@ -1465,6 +1501,10 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
                                      << r.risk.median_dihedral * 180 / std::numbers::pi << " deg");
         CHECK_FALSE(r.risk.coarse);
         CHECK_FALSE(r.risk.taubin);
+        // Read again with the detection on the probes: higher, not enough for Taubin (0.57).
+        CHECK(r.risk.recheck_probes == ks::detail::fbs::recheck_max_probes);
+        CHECK(r.risk.filters_rms_recheck > 0);
+        CHECK_FALSE(r.risk.recheck);
         CHECK(r.risk.median_dihedral > 0);  // measured on Taubin's result, below the bound
         CHECK(r.risk.median_dihedral < ks::detail::fbs::coarse_dihedral * r.d);
         CHECK(e < 15.5);   // 14.8 measured

@@ -452,6 +452,13 @@ struct FeatureBilateralResult {
         /// filters) unless `normal_veto`.
         Scalar median_dihedral = 0;
         bool coarse = false;
+        /// When the filters were kept and `median_dihedral` exceeds detail::fbs::recheck_dihedral · d:
+        /// the filters' rms error estimated again with the detection run on each of
+        /// `recheck_probes` probes, and whether Taubin's result was returned for it (Taubin's
+        /// risk below detail::fbs::recheck_ratio times that estimate); 0 / false otherwise.
+        Scalar filters_rms_recheck = 0;
+        std::size_t recheck_probes = 0;
+        bool recheck = false;
         /// When the heights (risk ratio) or the coarseness chose Taubin (0 otherwise): Taubin's mean
         /// squared face-normal error minus the filters', estimated (rad² per face), the estimate
         /// over its standard error, and whether it kept the filters' result (above
@@ -1158,6 +1165,19 @@ inline constexpr Scalar coarse_dihedral = 1.25;
 /// held-out shapes in docs/methods/feature_bilateral.md ("Faceted shapes").
 inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
 
+/// Where the filters were chosen and the median angle between Taubin's neighbouring faces
+/// exceeds recheck_dihedral · d (radians), the filters' risk is estimated again with the
+/// detection run on each probe's input (recheck_max_probes of them, fewer on meshes over 4K
+/// vertices: probes × vertices ≤ 2^16), and Taubin's result returned when its risk is below
+/// recheck_ratio times that estimate. Set on tori of 30 × 15 and 40 × 20 faces (the filters
+/// 14-22° against Taubin's 6-8° at 0.5-0.8|e|; median 1.05-1.2 d; the ratio 0.27-0.48) against
+/// consistently oriented prisms of 10-40 sides where the filters are better (0.54 and above;
+/// one at 0.42 that the face-normal veto returns to the filters). SharpSphere (median
+/// 0.77-0.83 d) reads 1.05-1.92; the Block and Twelve are not checked (0.3-0.5 d).
+/// docs/methods/feature_bilateral.md ("Detection recheck").
+inline constexpr Scalar recheck_dihedral = 0.6, recheck_ratio = 0.5;
+inline constexpr std::size_t recheck_max_probes = 16;
+
 /// What normal_risk_difference returns: the estimated mean over the faces, and that mean over
 /// its standard error (0 below 4 blocks).
 struct NormalRiskDifference {
@@ -1379,6 +1399,44 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         // features and flattens it into facets, and the filters' risk reads low.
                         result.risk.median_dihedral = median_dihedral_angle(kintsugi::face_normals(taubin), input_topo);
                         result.risk.taubin = result.risk.coarse = result.risk.median_dihedral > coarse_dihedral * result.d;
+                    }
+                    if (!result.risk.taubin && result.risk.median_dihedral > recheck_dihedral * result.d) {
+                        // The filters' risk above kept the first run's sharp edges: on a mesh that
+                        // bends by nearly d between faces the detection reads the bending as
+                        // creases, a choice that follows the noise, and the frozen estimate misses
+                        // it (a 30 × 15 torus: 0.11-0.18|e| estimated against 0.22-0.31|e|). Again
+                        // with the detection on each probe's input, averaged over several probes.
+                        const auto t2 = std::chrono::steady_clock::now();
+                        const std::size_t probes =
+                            std::clamp<std::size_t>((std::size_t{1} << 16) / std::max<std::size_t>(m, 1), 1, recheck_max_probes);
+                        FeatureBilateralParams again = repeat_params(inner, result);
+                        again.impulse_removal = false;  // none were found on the input (risk_skip_reason)
+                        Scalar div = 0;
+                        for (std::size_t p = 0; p < probes; ++p) {
+                            std::vector<Scalar> zp(nv, 0);
+                            IndexedMesh probe{input.vertices, input.faces, {}};
+                            for (std::size_t v = 0; v < nv; ++v) {
+                                state = state * 6364136223846793005ull + 1442695040888963407ull;
+                                const Index k2 = so.order[v];
+                                zp[v] = counted[k2] ? ((state >> 63) ? 1 : -1) : 0;
+                                probe.vertices[v] = frame.to_world(y[k2] + eps * sigma * zp[v] * normals[k2]);
+                            }
+                            again.control = part_control(params.control, 0.8 + 0.2 * static_cast<double>(p) / static_cast<double>(probes),
+                                                         0.8 + 0.2 * static_cast<double>(p + 1) / static_cast<double>(probes), last);
+                            if (smooth_run(probe, again, nullptr).status == Status::cancelled) throw cancelled_exception{};
+                            for (std::size_t v = 0; v < nv; ++v) {
+                                const Index k2 = so.order[v];
+                                if (counted[k2])
+                                    div += sigma * zp[v] * normals[k2].dot(frame.to_local(probe.vertices[v]) - f[k2]) / eps;
+                            }
+                        }
+                        div /= static_cast<Scalar>(probes);
+                        const Scalar risk_again = stein_risk(residual, m, s, div / (sigma * sigma));
+                        result.risk.recheck_probes = probes;
+                        result.risk.filters_rms_recheck = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_again) / ms));
+                        result.risk.taubin = result.risk.recheck = risk_again > 0 && risk_taubin < recheck_ratio * risk_again;
+                        result.timings.push_back({"risk: detection recheck",
+                                                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count()});
                     }
                     if (result.risk.taubin) {
                         // The heights or the coarseness chose Taubin; its face normals may still be
