@@ -211,12 +211,17 @@
 /// wound against their sides: 60 of the 74 cells where Taubin had been chosen, 7.7-20.9° →
 /// 2.0-7.6°, one wrongly by 0.5°; consistently oriented: 4 of 53, 13-16° → 4.5-10°, and 21 of
 /// 120 cells still return Taubin's result where the filters' is better; no organic shape
-/// measured reaches the bound). The cost is a second run of the filters
+/// measured reaches the bound). Where the filters are kept on a mesh whose faces meet at a median
+/// angle over 0.6 d, their risk is estimated again with the sharp edges detected anew on each of
+/// up to 16 probes (the frozen edges hide the noise-driven creases the detection reads in a
+/// coarse surface's bending), and Taubin's result returned below half of it (`risk.recheck`;
+/// coarse tori: 14-22° → 5-8°). The cost is a second run of the filters
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
-/// Taubin's result at the chosen count (twice, with the probe, when it is chosen):
-/// about 1.3× the time of the filters alone on 590K faces (later calls 2.98-3.38 s against
-/// 2.28-2.39 s). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
-/// meshes", "Faceted shapes").
+/// Taubin's result at the chosen count (twice, with the probe, when it is chosen): about 1.3×
+/// the time of the filters alone on 590K faces (later calls 2.98-3.38 s against 2.28-2.39 s).
+/// Past the recheck's gate, up to 16 more runs with the detection (probes × vertices ≤ 2^16,
+/// about the cost of one run on 65K vertices). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
+/// meshes", "Faceted shapes", "Detection recheck").
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
