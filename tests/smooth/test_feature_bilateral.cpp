@@ -1681,7 +1681,8 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
     }
     SUBCASE("cancelled in each part, and by the final report: the mesh untouched") {
         // The first run reports into [0, 0.4], the perturbed run into [0.4, 0.8], the sweep
-        // into [0.8, 1]; "done" comes once, before the mesh is written.
+        // into [0.8, 0.9], the recheck (below) into [0.9, 1]; "done" comes once, before the
+        // mesh is written.
         struct Part {
             const char* name;
             std::function<bool(const ks::ProgressEvent&)> at;
@@ -1722,6 +1723,25 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
         };
         CHECK(ks::smooth_feature_bilateral(stopped, ps).status == ks::Status::cancelled);
         CHECK(stopped.vertices == noisy.vertices);
+    }
+    SUBCASE("cancelled in the detection recheck (a 30 x 15 torus at 0.5|e|): the mesh untouched") {
+        const auto torus = ss::add_gaussian_noise(fixtures::torus(30, 15), 0.5 * ks::mean_edge_length(fixtures::torus(30, 15)), true, 11);
+        auto m = torus;
+        ks::FeatureBilateralParams p;
+        bool seen = false;
+        std::vector<double> fractions;
+        p.control.progress = [&](const ks::ProgressEvent& e) {
+            fractions.push_back(e.fraction);
+            if (e.fraction > 0.9 && std::string(e.stage) != "done") seen = true;
+            return !seen;
+        };
+        const auto r = ks::smooth_feature_bilateral(m, p);
+        CHECK(seen);
+        CHECK(r.status == ks::Status::cancelled);
+        CHECK(m.vertices == torus.vertices);
+        CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+        auto full = torus;  // uncancelled, the recheck runs and chooses Taubin (the torus subcase above)
+        CHECK(ks::smooth_feature_bilateral(full).risk.recheck);
     }
     SUBCASE("progress in order, once done, at most ~100 reports") {
         auto m = noisy;

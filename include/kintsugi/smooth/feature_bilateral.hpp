@@ -1259,7 +1259,7 @@ inline constexpr Scalar risk_sigma_limit = 1.1;
 /// The run of FeatureBilateralParams::risk_selection ("Risk selection" in the file comment):
 /// the filters, their Monte-Carlo SURE from a second run on a perturbed input, Taubin's sweep,
 /// and the result of lower estimated risk written to `mesh`. Progress: the filters' run
-/// 0-0.4, the perturbed run 0.4-0.8, the sweep 0.8-1.
+/// 0-0.4, the perturbed run 0.4-0.8, the sweep 0.8-0.9, the recheck (where it runs) 0.9-1.
 template <MutableTriangleMesh M>
 FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& params) {
     // The two runs and the sweep report into [0, 0.4], [0.4, 0.8] and [0.8, 1] of the whole,
@@ -1343,7 +1343,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             result.timings.push_back({"risk: perturbed run", std::chrono::duration<double>(t1 - t0).count()});
             for (const StageTiming& t : second.timings) result.timings.push_back({"risk: perturbed " + t.stage, t.seconds});
 
-            const RunControl sweep_control = part_control(params.control, 0.8, 1.0, last);
+            const RunControl sweep_control = part_control(params.control, 0.8, 0.9, last);
             Progress progress(sweep_control);
             progress.stage("risk: Taubin sweep", 0.0, 1.0);
             // The probes drawn in the input's vertex order (so.order: input index → internal).
@@ -1426,8 +1426,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                                 zp[v] = counted[k2] ? ((state >> 63) ? 1 : -1) : 0;
                                 probe.vertices[v] = frame.to_world(y[k2] + eps * sigma * zp[v] * normals[k2]);
                             }
-                            again.control = part_control(params.control, 0.8 + 0.2 * static_cast<double>(p) / static_cast<double>(probes),
-                                                         0.8 + 0.2 * static_cast<double>(p + 1) / static_cast<double>(probes), last);
+                            again.control = part_control(params.control, 0.9 + 0.1 * static_cast<double>(p) / static_cast<double>(probes),
+                                                         0.9 + 0.1 * static_cast<double>(p + 1) / static_cast<double>(probes), last);
                             if (smooth_run(probe, again, nullptr).status == Status::cancelled) throw cancelled_exception{};
                             for (std::size_t v = 0; v < nv; ++v) {
                                 const Index k2 = so.order[v];
