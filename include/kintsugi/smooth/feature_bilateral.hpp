@@ -219,8 +219,8 @@
 /// without the detection or the face filters' neighbour searches, up to 200 Taubin steps, and
 /// Taubin's result at the chosen count (twice, with the probe, when it is chosen): about 1.3×
 /// the time of the filters alone on 590K faces (later calls 2.98-3.38 s against 2.28-2.39 s).
-/// Past the recheck's gate, up to 16 more runs with the detection (probes × vertices ≤ 2^16,
-/// about the cost of one run on 65K vertices). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
+/// Past the recheck's gate, up to 16 more runs with the detection (probes × vertices ≤ 2^15,
+/// about the cost of one run on 32K vertices). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
 /// meshes", "Faceted shapes", "Detection recheck").
 ///
 /// ## Neighbourhoods and cost
@@ -1172,13 +1172,13 @@ inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
 
 /// Where the filters were chosen and the median angle between Taubin's neighbouring faces
 /// exceeds recheck_dihedral · d (radians), the filters' risk is estimated again with the
-/// detection run on each probe's input (recheck_max_probes of them, fewer on meshes over 4K
-/// vertices: probes × vertices ≤ 2^16), and Taubin's result returned when its risk is below
+/// detection run on each probe's input (recheck_max_probes of them, fewer on meshes over 2K
+/// vertices: probes × vertices ≤ 2^15), and Taubin's result returned when its risk is below
 /// recheck_ratio times that estimate. Set on tori of 30 × 15 and 40 × 20 faces (the filters
 /// 14-22° against Taubin's 6-8° at 0.5-0.8|e|; median 1.05-1.2 d; the ratio 0.27-0.48) against
 /// consistently oriented prisms of 10-40 sides where the filters are better (0.54 and above;
 /// one at 0.42 that the face-normal veto returns to the filters). SharpSphere (median
-/// 0.77-0.83 d) reads 1.05-1.92; the Block and Twelve are not checked (0.3-0.5 d).
+/// 0.77-0.83 d) reads 0.98-1.83 on its 3 probes; the Block and Twelve are not checked (0.3-0.5 d).
 /// docs/methods/feature_bilateral.md ("Detection recheck").
 inline constexpr Scalar recheck_dihedral = 0.6, recheck_ratio = 0.5;
 inline constexpr std::size_t recheck_max_probes = 16;
@@ -1413,7 +1413,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         // with the detection on each probe's input, averaged over several probes.
                         const auto t2 = std::chrono::steady_clock::now();
                         const std::size_t probes =
-                            std::clamp<std::size_t>((std::size_t{1} << 16) / std::max<std::size_t>(m, 1), 1, recheck_max_probes);
+                            std::clamp<std::size_t>((std::size_t{1} << 15) / std::max<std::size_t>(m, 1), 1, recheck_max_probes);
                         FeatureBilateralParams again = repeat_params(inner, result);
                         again.impulse_removal = false;  // none were found on the input (risk_skip_reason)
                         Scalar div = 0;
