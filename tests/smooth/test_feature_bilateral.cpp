@@ -1419,6 +1419,28 @@ TEST_CASE_TEMPLATE("risk selection: Taubin's result on a smooth shape, the filte
     }
 }
 
+namespace {
+/// One cell of the risk-selection tests: the defaults on `noisy`, with the filters alone and
+/// Taubin at the chosen count beside them, and the three mean normal errors against `clean`.
+struct RiskCell {
+    ks::FeatureBilateralResult r;
+    ks::IndexedMesh out, filters, taubin;
+    double e = 0, ef = 0, et = 0;
+};
+RiskCell risk_cell(const ks::IndexedMesh& clean, const ks::IndexedMesh& noisy) {
+    RiskCell c{{}, noisy, noisy, noisy};
+    c.r = ks::smooth_feature_bilateral(c.out);
+    REQUIRE(c.r.status == ks::Status::ok);
+    REQUIRE(c.r.risk.evaluated);
+    (void)ks::smooth_feature_bilateral(c.filters, {.risk_selection = false});
+    (void)ks::smooth_taubin(c.taubin, {}, {.iterations = c.r.risk.taubin_iterations});
+    c.e = ks::denoise_metrics(c.out, clean).mean_normal_angle_deg;
+    c.ef = ks::denoise_metrics(c.filters, clean).mean_normal_angle_deg;
+    c.et = ks::denoise_metrics(c.taubin, clean).mean_normal_angle_deg;
+    return c;
+}
+}  // namespace
+
 TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where the filters flatten a curved surface, the filters' on a prism") {
     SUBCASE("a 24 x 12 torus (576 faces) at 0.8|e|: too coarse for the filters, Taubin's result") {
         const auto clean = fixtures::torus(24, 12, 1.0, 0.4);
@@ -1456,16 +1478,7 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
         const double L = ks::mean_edge_length(clean);
         for (const double k : {0.5, 0.7, 0.8}) {
             CAPTURE(k);
-            const auto noisy = ss::add_gaussian_noise(clean, k * L, true, 11);
-            auto out = noisy;
-            const auto r = ks::smooth_feature_bilateral(out);
-            REQUIRE(r.status == ks::Status::ok);
-            REQUIRE(r.risk.evaluated);
-            auto filters = noisy, taubin = noisy;
-            (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
-            (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
-            const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
-            const double ef = ks::denoise_metrics(filters, clean).mean_normal_angle_deg;
+            const auto [r, out, filters, taubin, e, ef, et] = risk_cell(clean, ss::add_gaussian_noise(clean, k * L, true, 11));
             const double ratio = r.risk.taubin_rms * r.risk.taubin_rms / (r.risk.filters_rms * r.risk.filters_rms);
             const double again = r.risk.taubin_rms * r.risk.taubin_rms / (r.risk.filters_rms_recheck * r.risk.filters_rms_recheck);
             MESSAGE("torus 30x15, " << k << "|e|: " << e << " deg (Taubin, " << r.risk.taubin_iterations << " steps), filters " << ef
@@ -1522,16 +1535,7 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
         const double L = ks::mean_edge_length(clean);
         for (const auto& [k, seed] : {std::pair{0.5, 12u}, std::pair{0.8, 11u}}) {
             CAPTURE(k);
-            const auto noisy = ss::add_gaussian_noise(clean, k * L, true, seed);
-            auto out = noisy;
-            const auto r = ks::smooth_feature_bilateral(out);
-            REQUIRE(r.status == ks::Status::ok);
-            REQUIRE(r.risk.evaluated);
-            auto filters = noisy, taubin = noisy;
-            (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
-            (void)ks::smooth_taubin(taubin, {}, {.iterations = r.risk.taubin_iterations});
-            const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
-            const double et = ks::denoise_metrics(taubin, clean).mean_normal_angle_deg;
+            const auto [r, out, filters, taubin, e, ef, et] = risk_cell(clean, ss::add_gaussian_noise(clean, k * L, true, seed));
             MESSAGE("prism 16, caps reversed, " << k << "|e|, seed " << seed << ": " << e << " deg, Taubin " << et
                                                 << "; normal difference " << r.risk.normal_difference << " rad^2 at z " << r.risk.normal_z);
             CHECK(r.risk.taubin_rms * r.risk.taubin_rms < ks::detail::fbs::risk_ratio * r.risk.filters_rms * r.risk.filters_rms);
