@@ -220,8 +220,8 @@
 /// Taubin's result at the chosen count (twice, with the probe, when it is chosen): about 1.3×
 /// the time of the filters alone on 590K faces (later calls 2.98-3.38 s against 2.28-2.39 s).
 /// Past the recheck's gate, up to 16 more runs with the detection (probes × vertices ≤ 2^15,
-/// about the cost of one run on 32K vertices). Measured in docs/methods/feature_bilateral.md ("Risk selection", "Coarse
-/// meshes", "Faceted shapes", "Detection recheck").
+/// about the cost of one run on 32K vertices). Measured in docs/methods/feature_bilateral.md
+/// ("Risk selection", "Coarse meshes", "Faceted shapes", "Detection recheck").
 ///
 /// ## Neighbourhoods and cost
 /// Cube neighbourhoods come from a uniform grid over an internal copy of the mesh
@@ -1262,9 +1262,9 @@ inline constexpr Scalar risk_sigma_limit = 1.1;
 /// 0-0.4, the perturbed run 0.4-0.8, the sweep 0.8-0.9, the recheck (where it runs) 0.9-1.
 template <MutableTriangleMesh M>
 FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& params) {
-    // The two runs and the sweep report into [0, 0.4], [0.4, 0.8] and [0.8, 1] of the whole,
-    // throttled together; the whole run's "done" is reported once, before the mesh is written,
-    // so that a cancel there leaves it untouched.
+    // The two runs, the sweep and the recheck report into [0, 0.4], [0.4, 0.8], [0.8, 0.9] and
+    // [0.9, 1] of the whole, throttled together; the whole run's "done" is reported once, before
+    // the mesh is written, so that a cancel there leaves it untouched.
     double last = -1;
     FeatureBilateralParams inner = params;
     inner.risk_selection = false;
@@ -1312,11 +1312,13 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             fixed.control = part_control(params.control, 0.4, 0.8, last);
             std::vector<Scalar> z(nv, 0);  // by input index: the draws do not depend on the order
             std::uint64_t state = 0xD1B54A32D192ED03ull;
-            // The probe's input at input vertex v, local coordinates (z[v] drawn first).
-            auto probe_input = [&](std::size_t v) -> Vec3 {
+            // A probe's input at input vertex v with draw zv, local coordinates; probe_input: the
+            // first probe's (z[v] drawn first).
+            auto probe_at = [&](std::size_t v, Scalar zv) -> Vec3 {
                 const Index k = so.order[v];
-                return y[k] + eps * sigma * z[v] * normals[k];
+                return y[k] + eps * sigma * zv * normals[k];
             };
+            auto probe_input = [&](std::size_t v) { return probe_at(v, z[v]); };
             IndexedMesh perturbed{input.vertices, input.faces, {}};
             for (std::size_t v = 0; v < nv; ++v) {
                 state = state * 6364136223846793005ull + 1442695040888963407ull;
@@ -1424,7 +1426,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                                 state = state * 6364136223846793005ull + 1442695040888963407ull;
                                 const Index k2 = so.order[v];
                                 zp[v] = counted[k2] ? ((state >> 63) ? 1 : -1) : 0;
-                                probe.vertices[v] = frame.to_world(y[k2] + eps * sigma * zp[v] * normals[k2]);
+                                probe.vertices[v] = frame.to_world(probe_at(v, zp[v]));
                             }
                             again.control = part_control(params.control, 0.9 + 0.1 * static_cast<double>(p) / static_cast<double>(probes),
                                                          0.9 + 0.1 * static_cast<double>(p + 1) / static_cast<double>(probes), last);
