@@ -17,6 +17,7 @@
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/random.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/topology.hpp>
 #include <kintsugi/mesh/vertex_subset.hpp>
@@ -205,8 +206,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
         is_counted[k] = 1;
         ++out.moved;
         for (std::size_t p = 0; p < probes; ++p) {
-            seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-            z0[probes * k + p] = state[stride * k + 3 + p] = (seed >> 63) ? 1 : -1;
+            z0[probes * k + p] = state[stride * k + 3 + p] = static_cast<float>(rademacher(seed));
         }
         for (int c = 0; c < 3; ++c) nrm[3 * k + c] = static_cast<float>(normals[v][c]);
         ny[k] = dot_n(k, &state[stride * k]);

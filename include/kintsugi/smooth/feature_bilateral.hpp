@@ -245,6 +245,7 @@
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
+#include <kintsugi/core/random.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/geometry.hpp>
 #include <kintsugi/mesh/impulses.hpp>
@@ -1319,12 +1320,25 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 return y[k] + eps * sigma * zv * normals[k];
             };
             auto probe_input = [&](std::size_t v) { return probe_at(v, z[v]); };
+            // A probe: its draws `zs` (one per input vertex, 0 where not counted) and its input
+            // written into `out` (world coordinates).
+            auto draw_probe = [&](std::vector<Scalar>& zs, IndexedMesh& out) {
+                for (std::size_t v = 0; v < nv; ++v) {
+                    const int draw = rademacher(state);
+                    zs[v] = counted[so.order[v]] ? draw : 0;
+                    out.vertices[v] = frame.to_world(probe_at(v, zs[v]));
+                }
+            };
+            // Adds to `acc` a probe's divergence term Σ σ z_v n_v·(run_v − f_v) / eps over the
+            // counted vertices, `run` the filters' result on that probe's input.
+            auto add_divergence = [&](Scalar& acc, const std::vector<Scalar>& zs, const IndexedMesh& run) {
+                for (std::size_t v = 0; v < nv; ++v) {
+                    const Index k = so.order[v];
+                    if (counted[k]) acc += sigma * zs[v] * normals[k].dot(frame.to_local(run.vertices[v]) - f[k]) / eps;
+                }
+            };
             IndexedMesh perturbed{input.vertices, input.faces, {}};
-            for (std::size_t v = 0; v < nv; ++v) {
-                state = state * 6364136223846793005ull + 1442695040888963407ull;
-                z[v] = counted[so.order[v]] ? ((state >> 63) ? 1 : -1) : 0;
-                perturbed.vertices[v] = frame.to_world(probe_input(v));
-            }
+            draw_probe(z, perturbed);
             // The first run's sharp edges, not a new detection: the divergence is a derivative,
             // which the detection's discrete choices do not have (a flipped edge would count).
             const FeatureBilateralResult second = smooth_run(perturbed, fixed, &result.features.sharp_edges, &reuse);
@@ -1339,8 +1353,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 ++m;
                 const Scalar h = normals[k].dot(f[k] - y[k]);
                 residual += h * h;
-                divergence += sigma * z[v] * normals[k].dot(frame.to_local(perturbed.vertices[v]) - f[k]) / eps;
             }
+            add_divergence(divergence, z, perturbed);
             const auto t1 = std::chrono::steady_clock::now();
             result.timings.push_back({"risk: perturbed run", std::chrono::duration<double>(t1 - t0).count()});
             for (const StageTiming& t : second.timings) result.timings.push_back({"risk: perturbed " + t.stage, t.seconds});
@@ -1422,20 +1436,11 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         for (std::size_t p = 0; p < probes; ++p) {
                             std::vector<Scalar> zp(nv, 0);
                             IndexedMesh probe{input.vertices, input.faces, {}};
-                            for (std::size_t v = 0; v < nv; ++v) {
-                                state = state * 6364136223846793005ull + 1442695040888963407ull;
-                                const Index k2 = so.order[v];
-                                zp[v] = counted[k2] ? ((state >> 63) ? 1 : -1) : 0;
-                                probe.vertices[v] = frame.to_world(probe_at(v, zp[v]));
-                            }
+                            draw_probe(zp, probe);
                             again.control = part_control(params.control, 0.9 + 0.1 * static_cast<double>(p) / static_cast<double>(probes),
                                                          0.9 + 0.1 * static_cast<double>(p + 1) / static_cast<double>(probes), last);
                             if (smooth_run(probe, again, nullptr).status == Status::cancelled) throw cancelled_exception{};
-                            for (std::size_t v = 0; v < nv; ++v) {
-                                const Index k2 = so.order[v];
-                                if (counted[k2])
-                                    div += sigma * zp[v] * normals[k2].dot(frame.to_local(probe.vertices[v]) - f[k2]) / eps;
-                            }
+                            add_divergence(div, zp, probe);
                         }
                         div /= static_cast<Scalar>(probes);
                         const Scalar risk_again = stein_risk(residual, m, s, div / (sigma * sigma));
