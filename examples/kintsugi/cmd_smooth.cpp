@@ -4,8 +4,9 @@
 // `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T] [--voting-cube 3]
 // [--edge-iterations N] [--face-iterations N] [--no-features] [--no-coplanar-creases] [--features FEATURES.ply]
 // [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N] [--risk-selection | --no-risk-selection]
-// [--no-impulse-removal]`: feature-aware bilateral smoothing (vertices impulsive noise moved put
-// back first, unless --no-impulse-removal; a Taubin low-pass first under strong noise; Taubin's result
+// [--no-impulse-removal] [--no-untangle]`: feature-aware bilateral smoothing (faces folded over by
+// noise along the surface unfolded first, unless --no-untangle; vertices impulsive noise moved put
+// back, unless --no-impulse-removal; a Taubin low-pass first under strong noise; Taubin's result
 // instead where its estimated error is clearly lower, unless --no-risk-selection); the
 // sharp edges can be written as PLY polylines. `--preset paper` starts from the paper's published
 // parameters and detection (FeatureBilateralParams::paper()); options given win.
@@ -28,6 +29,7 @@ struct SmoothOptions {
     bool risk_selection = false;     // --risk-selection: the default; kept for older command lines
     bool no_risk_selection = false;  // --no-risk-selection: the filters' result always
     bool no_impulse_removal = false; // --no-impulse-removal: the filters see impulsive noise as it is
+    bool no_untangle = false;        // --no-untangle: faces folded by tangential noise left folded
     // --d and --face-iterations: given, or left to the noise estimate (unset optionals).
     double d = 0;
     std::size_t face_iterations = 0;
@@ -96,6 +98,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_flag("--no-impulse-removal", o->no_impulse_removal,
                  "Do not put back the vertices impulsive noise moved far off the surface (found only when the "
                  "vertices' heights above their neighbours are heavy-tailed; the paper preset never does)");
+    cmd.add_flag("--no-untangle", o->no_untangle,
+                 "Do not unfold the faces that noise along the surface folded over (done only when the vertices' "
+                 "offsets from their neighbours read as noise in random directions; the paper preset never does)");
     cmd.add_option("--features", o->features, "Write the sharp edges found as PLY polylines (vertex + edge elements)");
     return [o, &ctx] {
         if (o->risk_selection && o->no_risk_selection)
@@ -129,6 +134,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         if (o->risk_selection) params.risk_selection = true;
         if (o->no_risk_selection) params.risk_selection = false;
         if (o->no_impulse_removal) params.impulse_removal = false;
+        if (o->no_untangle) params.untangle = false;
         params.control = ctx.control("smooth");
         ctx.doing("smoothing the " + kcli::grouped(mesh.faces.size()) + " faces of " + o->input);
         const kintsugi::FeatureBilateralResult r = kintsugi::smooth_feature_bilateral(mesh, params);
@@ -192,6 +198,15 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                 im["input_noise"]["relative"] = r.input_noise.relative;
             }
         }
+        j["parameters"]["untangle"] = params.untangle;
+        if (params.untangle) {
+            auto& un = j["untangle"];
+            un["ratio"] = r.untangle.ratio;
+            un["tangential_noise"] = r.untangle.tangential_noise;
+            un["reference_angle_deg"] = r.untangle.reference_angle * 180 / std::numbers::pi;
+            un["folded_faces"] = r.untangle.folded_faces;
+            un["moved_vertices"] = r.untangle.moved_vertices;
+        }
         j["parameters"]["features"] = params.features;
         j["parameters"]["risk_selection"] = params.risk_selection;
         if (params.risk_selection) {
@@ -233,6 +248,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                   : r.risk.evaluated   ? ", the filters' result kept (lower estimated error)"
                                        : ", the filters' result kept (risks not compared: " + r.risk.note + ")";
         }
+        if (r.untangle.moved_vertices > 0)
+            how += "; " + std::to_string(r.untangle.folded_faces) + " faces folded over by noise along the surface unfolded";
         if (r.impulse_vertices > 0)
             how += "; " + std::to_string(r.impulse_vertices) + " vertices moved by impulsive noise put back";
         else if (r.impulses_dense)

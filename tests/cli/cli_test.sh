@@ -269,6 +269,10 @@ expect 0 "smooth --risk-selection (clean bunny)" -- "$bin" smooth "$mesh" "$work
 json_check "smooth: risk selection not compared on the clean bunny (held vertices)" "j['risk_selection']['evaluated'] is False and j['risk_selection']['result']=='filters' and 'held' in j['risk_selection']['note'] and j['held_vertices']>0"
 expect 0 "smooth (noisy bunny, defaults)" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_risk3.off" --json
 json_check "smooth: the risk selection runs by default" "j['parameters']['risk_selection'] is True and j['risk_selection']['result']=='taubin'"
+json_check "smooth: noise in random directions unfolds folded faces first" "j['parameters']['untangle'] is True and j['untangle']['tangential_noise'] is True and j['untangle']['ratio']>1.2 and j['untangle']['folded_faces']>0 and j['untangle']['moved_vertices']>0 and 'reference_angle_deg' in j['untangle'] and 'untangle' in j['timings']"
+expect 0 "smooth --no-untangle" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_nountangle.off" --no-untangle --json
+json_check "smooth: --no-untangle leaves the folds to the filters" "j['parameters']['untangle'] is False and 'untangle' not in j"
+if cmp -s "$work/sm_risk3.off" "$work/sm_nountangle.off"; then bad "smooth: --no-untangle wrote the same mesh"; else ok; fi
 if cmp -s "$work/sm_risk.off" "$work/sm_risk3.off"; then ok; else bad "smooth: defaults and --risk-selection wrote different meshes"; fi
 expect 0 "smooth --no-risk-selection" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_norisk.off" --no-risk-selection --json
 json_check "smooth: --no-risk-selection keeps the filters" "j['parameters']['risk_selection'] is False and 'risk_selection' not in j"

@@ -260,9 +260,13 @@ TEST_CASE_TEMPLATE("smooth_feature_bilateral denoises a noisy box on every mesh 
     CHECK(r.vertices == clean.vertices.size());
     CHECK(r.faces == clean.faces.size());
     CHECK(r.feature_vertices > 0);
-    // topology, coplanar creases, impulses, noise level, features, edge and face smoothing,
-    // straightening; then the risk selection's perturbed run (its stages nested) and the Taubin sweep.
-    CHECK(stages_outside_risk(r) == 8u);
+    // untangle, topology, coplanar creases, impulses, noise level, features, edge and face
+    // smoothing, straightening; then the risk selection's perturbed run (its stages nested) and the
+    // Taubin sweep.
+    CHECK(stages_outside_risk(r) == 9u);
+    CHECK(r.timings.front().stage == "untangle");
+    CHECK_FALSE(r.untangle.tangential_noise);  // noise along the normals
+    CHECK(r.untangle.moved_vertices == 0);
     CHECK_FALSE(r.impulsive_noise);  // Gaussian noise: nothing put back
     CHECK(r.impulse_vertices == 0);
     CHECK(r.timings.back().stage == "risk: Taubin sweep");
@@ -296,8 +300,8 @@ TEST_CASE("features = false runs the same filters without feature handling") {
     CHECK(ro.features.sharp_edges.empty());
     CHECK(ro.feature_vertices == 0);
     CHECK(rw.feature_vertices > 0);
-    // topology, impulses, noise level, low-pass (when a step runs), face smoothing; then the risk selection's
-    CHECK(stages_outside_risk(ro) == (ro.lowpass_iterations > 0 ? 5u : 4u));
+    // untangle, topology, impulses, noise level, low-pass (when a step runs), face smoothing; then the risk selection's
+    CHECK(stages_outside_risk(ro) == (ro.lowpass_iterations > 0 ? 6u : 5u));
     CHECK(ks::denoise_metrics(without, clean).mean_normal_angle_deg <
           ks::denoise_metrics(noisy, clean).mean_normal_angle_deg);
     CHECK(with.vertices != without.vertices);
@@ -2076,4 +2080,101 @@ TEST_CASE("a clean plate with a half-cylinder across its grid: the smoothing put
     (void)ks::smooth_feature_bilateral(off, {.impulse_removal = false});
     CHECK(rs.impulse_vertices == 0);
     CHECK(on.vertices == off.vertices);
+}
+
+namespace {
+// Faces whose normal points away from the clean face's (over 90°): folded over.
+std::size_t flipped_faces(const ks::IndexedMesh& m, const ks::IndexedMesh& clean) {
+    const auto a = ks::face_normals(m), b = ks::face_normals(clean);
+    std::size_t n = 0;
+    for (std::size_t f = 0; f < a.size(); ++f) n += a[f].dot(b[f]) < 0;
+    return n;
+}
+}  // namespace
+
+TEST_CASE_TEMPLATE("noise in random directions: the folded faces are unfolded first, on every mesh type", T,
+                   ks::IndexedMesh, ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>, ss::SurfaceMesh) {
+    // The box (1,536 faces) with Gaussian noise of 0.5|e| in uniformly random directions: the
+    // tangential part folds faces over, which the filters' vertex updates along face normals
+    // cannot undo (docs/methods/feature_bilateral.md, "Noise in random directions").
+    const auto clean = ss::box_mesh(16);
+    const double L = ks::mean_edge_length(clean);
+    const auto noisy = ss::add_gaussian_noise(clean, 0.5 * L, false, 11);
+    Holder<T> h(noisy);
+    const auto r = ks::smooth_feature_bilateral(h.mesh());
+    REQUIRE(r.status == ks::Status::ok);
+    CHECK(r.timings.front().stage == "untangle");
+    CHECK(r.untangle.tangential_noise);
+    CHECK(r.untangle.ratio > ks::detail::untangle::ratio_gate);
+    CHECK(r.untangle.folded_faces > 10);
+    CHECK(r.untangle.moved_vertices >= r.untangle.folded_faces / 2);
+    const auto out = h.get();
+    REQUIRE(all_finite(out));
+    ks::IndexedMesh off = noisy;
+    const auto r_off = ks::smooth_feature_bilateral(off, {.untangle = false});
+    CHECK(r_off.untangle.ratio == 0);  // the stage did not run
+    const double e_in = ks::denoise_metrics(noisy, clean).mean_normal_angle_deg,
+                 e_on = ks::denoise_metrics(out, clean).mean_normal_angle_deg,
+                 e_off = ks::denoise_metrics(off, clean).mean_normal_angle_deg;
+    MESSAGE("box, 0.5|e| in random directions: normal error noisy " << e_in << ", untangled " << e_on << ", not "
+                                                                    << e_off << " deg; folded faces noisy "
+                                                                    << flipped_faces(noisy, clean) << ", untangled "
+                                                                    << flipped_faces(out, clean) << ", not "
+                                                                    << flipped_faces(off, clean) << "; ratio "
+                                                                    << r.untangle.ratio << ", " << r.untangle.folded_faces
+                                                                    << " found, " << r.untangle.moved_vertices << " moved");
+    CHECK(e_on < 0.8 * e_off);  // 2.86 against 3.96 deg
+    CHECK(flipped_faces(out, clean) * 4 < flipped_faces(off, clean));
+    // Same result whatever the container.
+    ks::IndexedMesh reference = noisy;
+    (void)ks::smooth_feature_bilateral(reference);
+    for (std::size_t v = 0; v < out.vertices.size(); ++v)
+        REQUIRE((out.vertices[v] - reference.vertices[v]).norm() < 1e-12 * L);
+}
+
+TEST_CASE("untangling: noise along the normals does not pass its gate; thread count, cancellation") {
+    const auto clean = ss::box_mesh(16);
+    const double L = ks::mean_edge_length(clean);
+    SUBCASE("along the normals, 0.5|e|: nothing moves, and the result is the stage-off result bit for bit") {
+        const auto noisy = ss::add_gaussian_noise(clean, 0.5 * L, true, 11);
+        auto on = noisy, off = noisy;
+        const auto r = ks::smooth_feature_bilateral(on);
+        (void)ks::smooth_feature_bilateral(off, {.untangle = false});
+        CHECK(r.untangle.ratio > 0);
+        CHECK(r.untangle.ratio < ks::detail::untangle::ratio_gate);
+        CHECK_FALSE(r.untangle.tangential_noise);
+        CHECK(r.untangle.folded_faces == 0);
+        CHECK(r.untangle.moved_vertices == 0);
+        CHECK(on.vertices == off.vertices);
+    }
+    const auto noisy = ss::add_gaussian_noise(clean, 0.5 * L, false, 11);
+    SUBCASE("random directions: the same with 1 and 2 threads") {
+        auto a = noisy, b = noisy;
+        ks::FeatureBilateralResult ra, rb;
+        {
+            ks::ThreadLimit one(1);
+            ra = ks::smooth_feature_bilateral(a);
+        }
+        {
+            ks::ThreadLimit two(2);
+            rb = ks::smooth_feature_bilateral(b);
+        }
+        CHECK(ra.untangle.moved_vertices > 0);
+        CHECK(ra.untangle.moved_vertices == rb.untangle.moved_vertices);
+        CHECK(a.vertices == b.vertices);
+    }
+    SUBCASE("cancelled before the run or during it: the mesh untouched") {
+        for (int at : {0, 5}) {
+            auto m = noisy;
+            std::stop_source stop;
+            ks::FeatureBilateralParams p;
+            int calls = 0;
+            if (at == 0) stop.request_stop();
+            p.control.stop = stop.get_token();
+            p.control.progress = [&](const ks::ProgressEvent&) { return ++calls < at; };
+            const auto r = ks::smooth_feature_bilateral(m, p);
+            CHECK(r.status == ks::Status::cancelled);
+            CHECK(m.vertices == noisy.vertices);
+        }
+    }
 }

@@ -199,6 +199,24 @@ inline Scalar upper_median(std::vector<Scalar> v) {
     std::nth_element(v.begin(), mid, v.end());
     return *mid;
 }
+
+/// The median over the interior edges (two faces) of the angle between the two faces' unit
+/// normals `n` (kintsugi::face_normals, indexed as topo's faces), in radians; 0 when no such
+/// edge has two non-degenerate faces. Degenerate faces (zero normals) are left out.
+inline Scalar median_dihedral_angle(const std::vector<Vec3>& n, const MeshTopology& topo) {
+    std::vector<Scalar> angles;
+    angles.reserve(topo.num_edges());
+    for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+        const auto ef = topo.edge_faces(static_cast<Index>(e));
+        if (ef.size() != 2) continue;
+        const Vec3& a = n[ef[0]];
+        const Vec3& b = n[ef[1]];
+        if (a.squaredNorm() == 0 || b.squaredNorm() == 0) continue;
+        // atan2 of |a×b| and a·b: accurate near 0 and π, orientation-free for consistent faces.
+        angles.push_back(std::atan2(a.cross(b).norm(), a.dot(b)));
+    }
+    return angles.empty() ? Scalar(0) : upper_median(std::move(angles));
+}
 }  // namespace detail
 
 /// @brief Mean length of the mesh's unique undirected edges (each counted once), in
