@@ -102,6 +102,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -248,6 +249,39 @@ void BM_taubin(benchmark::State& state) {
 }
 BENCHMARK(BM_taubin)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
+// A noise-table shape read with its normals dropped, or nothing (and a "skipped" row) when the
+// file is missing.
+std::optional<ks::IndexedMesh> table_shape(const char* name, const fs::path& path) {
+    if (!fs::exists(path)) {
+        std::printf("%-17s skipped: %s not found\n", name, path.string().c_str());
+        return std::nullopt;
+    }
+    ks::IndexedMesh clean = ks::read_mesh(path);
+    clean.normals.clear();
+    return clean;
+}
+
+// "normal error (deg) / vertex RMS (|e|)" of m against clean.
+std::string table_cell(const ks::IndexedMesh& m, const ks::IndexedMesh& clean, double L) {
+    const auto d = ks::denoise_metrics(m, clean);
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%6.2f / %.3f", d.mean_normal_angle_deg, d.vertex_rms / L);
+    return buf;
+}
+
+// The best (by normal error) of Taubin at 10, 20 and 50 pairs, and its count.
+ks::IndexedMesh best_taubin(const ks::IndexedMesh& noisy, const ks::IndexedMesh& clean, int& count) {
+    double bt = 1e9;
+    ks::IndexedMesh best;
+    for (int it : {10, 20, 50}) {
+        auto t = noisy;
+        (void)ks::smooth_taubin(t, {}, {.iterations = std::size_t(it)});
+        const double e = ks::denoise_metrics(t, clean).mean_normal_angle_deg;
+        if (e < bt) bt = e, count = it, best = t;
+    }
+    return best;
+}
+
 void accuracy_table() {
     const fs::path root = fs::path(KINTSUGI_SHARED_DATA_DIR) / "guided_denoising";
     if (!fs::exists(root)) {
@@ -263,12 +297,7 @@ void accuracy_table() {
         const auto noisy = ks::read_mesh(root / name / "Noisy.obj");
         const auto clean = ks::read_mesh(root / name / "Original.obj");
         const double L = ks::mean_edge_length(clean);
-        auto cell = [&](const ks::IndexedMesh& m) {
-            const auto d = ks::denoise_metrics(m, clean);
-            char buf[64];
-            std::snprintf(buf, sizeof buf, "%6.2f / %.3f", d.mean_normal_angle_deg, d.vertex_rms / L);
-            return std::string(buf);
-        };
+        auto cell = [&](const ks::IndexedMesh& m) { return table_cell(m, clean, L); };
         auto ours = noisy, plain = noisy;
         (void)ks::smooth_feature_bilateral(ours);
         (void)ks::smooth_feature_bilateral(plain, {.features = false, .risk_selection = false});
@@ -309,9 +338,9 @@ void accuracy_table() {
 // by every choice; CGAL's eight.off (634 faces, its faces meeting at a median 15.6°) was added
 // when the coarse-mesh rule of the risk selection was set on it (2026-12-06, evening). Run
 // alone with --benchmark_filter=noise_table.
-void BM_noise_table(benchmark::State& state) {
+std::vector<std::pair<const char*, fs::path>> noise_table_shapes() {
     const fs::path shared = fs::path(KINTSUGI_SHARED_DATA_DIR);
-    const std::vector<std::pair<const char*, fs::path>> shapes = {
+    return {
         {"Block (tuned)", shared / "guided_denoising" / "Block0.4" / "Original.obj"},
         {"SharpSphere", shared / "guided_denoising" / "SharpSphere0.3" / "Original.obj"},
         {"Twelve", shared / "guided_denoising" / "Twelve0.5Impulsive" / "Original.obj"},
@@ -322,43 +351,32 @@ void BM_noise_table(benchmark::State& state) {
         {"bun_zipper (h.o.)", shared / "stanford_bunny" / "reconstruction" / "bun_zipper.ply"},
         {"elephant (h.o.)", shared / "cgal" / "meshes" / "elephant-with-holes.off"},
         {"eight (coarse)", shared / "cgal" / "meshes" / "eight.off"}};
+}
+
+void BM_noise_table(benchmark::State& state) {
+    const auto shapes = noise_table_shapes();
     for (auto _ : state) {
         std::printf("\nnoise table: normal error (deg) / vertex RMS (|e|); sigma estimated / true (|e|)\n");
         std::printf("%-17s %-6s %22s %15s %15s %15s %15s %19s %24s %13s\n", "shape", "noise", "defaults", "filters alone",
                     "low-pass off", "impulses kept", "paper", "best Taubin", "best smooth_shape", "sigma est/true");
         for (const auto& [name, path] : shapes) {
-            if (!fs::exists(path)) {
-                std::printf("%-17s skipped: %s not found\n", name, path.string().c_str());
-                continue;
-            }
-            ks::IndexedMesh clean = ks::read_mesh(path);
-            clean.normals.clear();
+            const auto loaded = table_shape(name, path);
+            if (!loaded) continue;
+            const ks::IndexedMesh& clean = *loaded;
             const double L = ks::mean_edge_length(clean);
             for (double k : {0.1, 0.3, 0.5, 0.7, 0.8, -1.0}) {
                 double truth = 0;
                 const ks::IndexedMesh noisy = k > 0 ? ss::add_gaussian_noise(clean, k * L, true, 11, &truth)
                                                     : ss::add_impulsive_noise(clean, L, 11, &truth);
-                auto cell = [&](const ks::IndexedMesh& m) {
-                    const auto d = ks::denoise_metrics(m, clean);
-                    char buf[64];
-                    std::snprintf(buf, sizeof buf, "%6.2f / %.3f", d.mean_normal_angle_deg, d.vertex_rms / L);
-                    return std::string(buf);
-                };
+                auto cell = [&](const ks::IndexedMesh& m) { return table_cell(m, clean, L); };
                 auto ours = noisy, alone = noisy, off = noisy, kept = noisy, paper = noisy;
                 const auto r = ks::smooth_feature_bilateral(ours);
                 (void)ks::smooth_feature_bilateral(alone, {.risk_selection = false});
                 (void)ks::smooth_feature_bilateral(off, {.lowpass_noise = 0, .risk_selection = false});
                 (void)ks::smooth_feature_bilateral(kept, {.impulse_removal = false});
                 (void)ks::smooth_feature_bilateral(paper, ks::FeatureBilateralParams::paper());
-                double bt = 1e9;
                 int bit = 0;
-                ks::IndexedMesh best;
-                for (int it : {10, 20, 50}) {
-                    auto t = noisy;
-                    (void)ks::smooth_taubin(t, {}, {.iterations = std::size_t(it)});
-                    const double e = ks::denoise_metrics(t, clean).mean_normal_angle_deg;
-                    if (e < bt) bt = e, bit = it, best = t;
-                }
+                const ks::IndexedMesh best = best_taubin(noisy, clean, bit);
                 std::string ss_setting;
                 const auto shape = ss::best_smooth_shape(noisy, clean, &ss_setting);
                 char label[16], taubin[48], cgal[64], risk[64];
@@ -378,6 +396,51 @@ void BM_noise_table(benchmark::State& state) {
     }
 }
 BENCHMARK(BM_noise_table)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
+// The same shapes with Gaussian noise in uniformly random directions (σ the displacement's rms;
+// its component along the normals, which the noise estimate reads, is about σ/√3), seed 11: the
+// defaults (T/F as above; u n: n vertices of faces folded over by the tangential part moved by
+// the untangling stage), the defaults without it (untangle = false), the best Taubin of 10/20/50
+// and the best smooth_shape, and the estimated noise against the rms of the displacements along
+// the normals. Run alone with --benchmark_filter=noise_random.
+void BM_noise_random(benchmark::State& state) {
+    const auto shapes = noise_table_shapes();
+    for (auto _ : state) {
+        std::printf("\nnoise in random directions: normal error (deg) / vertex RMS (|e|); sigma estimated / true normal rms (|e|)\n");
+        std::printf("%-17s %-5s %24s %15s %19s %24s %13s\n", "shape", "noise", "defaults", "untangle off", "best Taubin",
+                    "best smooth_shape", "sigma est/true");
+        for (const auto& [name, path] : shapes) {
+            const auto loaded = table_shape(name, path);
+            if (!loaded) continue;
+            const ks::IndexedMesh& clean = *loaded;
+            const double L = ks::mean_edge_length(clean);
+            for (double k : {0.1, 0.3, 0.5, 0.7, 0.8}) {
+                double truth = 0;
+                const ks::IndexedMesh noisy = ss::add_gaussian_noise(clean, k * L, false, 11, &truth);
+                auto cell = [&](const ks::IndexedMesh& m) { return table_cell(m, clean, L); };
+                auto ours = noisy, off = noisy;
+                const auto r = ks::smooth_feature_bilateral(ours);
+                (void)ks::smooth_feature_bilateral(off, {.untangle = false});
+                int bit = 0;
+                const ks::IndexedMesh best = best_taubin(noisy, clean, bit);
+                std::string ss_setting, shape_cell = "(CGAL refused the mesh)";
+                try {
+                    const auto shape = ss::best_smooth_shape(noisy, clean, &ss_setting);
+                    shape_cell = cell(shape) + " (" + ss_setting + ")";
+                } catch (const std::exception&) {
+                }
+                char def[64], taubin[48];
+                std::snprintf(def, sizeof def, "%s (%s u %zu)", cell(ours).c_str(), r.risk.taubin ? "T" : "F",
+                              r.untangle.moved_vertices);
+                std::snprintf(taubin, sizeof taubin, "%s (%d)", cell(best).c_str(), bit);
+                std::printf("%-17s %-5.1f %24s %15s %19s %24s %6.3f/%.3f\n", name, k, def, cell(off).c_str(), taubin,
+                            shape_cell.c_str(), r.input_noise.sigma / L, truth / L);
+                std::fflush(stdout);
+            }
+        }
+    }
+}
+BENCHMARK(BM_noise_random)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
 

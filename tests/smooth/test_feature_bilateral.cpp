@@ -1889,6 +1889,10 @@ TEST_CASE("impulsive noise on a curved shape: put back, the rest held, ahead of 
     CHECK(r.impulse_vertices > 0);
     CHECK(r.held_vertices > b.clean.vertices.size() / 2);
     CHECK(ro.impulse_vertices == 0);
+    // The untangling leaves impulsive noise to the impulse removal (its ratio reads high on this
+    // irregular mesh, the unmoved majority's offsets being mostly tangential).
+    CHECK(r.untangle.impulsive == (r.untangle.ratio > ks::detail::untangle::ratio_gate));
+    CHECK(r.untangle.moved_vertices == 0);
     CHECK(e < best_taubin);
     CHECK(e < eo - 1);
     // The input's noise is reported; the filters' scales come from what is left.

@@ -25,6 +25,8 @@
 ///   irregularity; noise in random directions raises t with the tangential two thirds of its
 ///   variance. The stage runs when median t / median h exceeds `ratio_gate` (1.2): along the
 ///   normals at 0.3-0.8|e| ten shapes read 0.12-0.92, in random directions 1.64-2.45.
+/// - **Impulsive noise** (remove_impulses' gate on the heights above the neighbours) is left to the
+///   impulse removal: its unmoved majority reads a high ratio on irregular meshes.
 /// - **Coarse meshes** are left as they are: above a median angle of `coarse_angle` (12°)
 ///   between the reference's neighbouring faces a move within the tangent plane leaves the surface.
 /// - **Folded faces:** those whose normal points against the sum of their corners' reference
@@ -36,6 +38,7 @@
 /// Cost: the Taubin pairs and a few passes over the vertices, O(n).
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/mesh/geometry.hpp>
+#include <kintsugi/mesh/impulses.hpp>
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
@@ -52,6 +55,10 @@ struct UntangleReport {
     Scalar ratio = 0;
     /// The ratio passed the gate, so folded faces were looked for.
     bool tangential_noise = false;
+    /// The vertices' heights above their neighbours are heavy-tailed (remove_impulses' gate):
+    /// impulsive noise, whose unmoved majority makes the ratio read high on irregular meshes;
+    /// left to the impulse removal, nothing moved here.
+    bool impulsive = false;
     /// Median angle between neighbouring faces of the smoothed reference, in radians; above
     /// detail::untangle::coarse_angle the mesh is too coarse for moves within the tangent plane.
     Scalar reference_angle = 0;
@@ -123,6 +130,23 @@ inline UntangleReport run(std::vector<Vec3>& p, const std::vector<Face>& faces, 
     rep.ratio = mh > 0 ? mt / mh : (mt > 0 ? std::numeric_limits<Scalar>::infinity() : 0);
     rep.tangential_noise = rep.ratio > ratio_gate;
     if (!rep.tangential_noise || rep.reference_angle > coarse_angle) return rep;
+    {  // impulsive noise: remove_impulses' gate on the heights (fertility + 10 % impulses reads 2.45)
+        const Scalar L = mean_edge_length(p, topo, false);
+        const Scalar min_area2 = 1e-4 * L * L * L * L;
+        std::vector<Scalar> heights(nv, -1);
+        parallel_for(0, nv, [&](std::size_t v) {
+            heights[v] = impulses::height(p, faces, topo, static_cast<Index>(v), min_area2);
+        }, 1024);
+        std::vector<Scalar> defined;
+        for (Scalar x : heights)
+            if (x >= 0) defined.push_back(x);
+        const ImpulseParams gate{};
+        if (defined.size() >= 20) {
+            const Scalar scale = std::max(impulses::quantile(defined, 0.5), gate.floor * L);
+            rep.impulsive = impulses::quantile(defined, 0.99) > gate.gate * scale;
+        }
+        if (rep.impulsive) return rep;
+    }
     std::vector<unsigned char> move(nv, 0);
     for (const Face& f : faces) {
         const Vec3 &a = n[f[0]], &b = n[f[1]], &c = n[f[2]];
