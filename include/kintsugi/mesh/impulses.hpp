@@ -164,6 +164,32 @@ inline Scalar quantile(std::vector<Scalar> x, double q) {
     return x[k];
 }
 
+/// The least |cross|² of the triples height() takes: an area of 0.005|e|² for mean edge length L.
+inline Scalar height_min_area2(Scalar L) { return 1e-4 * L * L * L * L; }
+
+/// Every vertex's height (-1: none), and the gate on them: with at least 20 heights defined,
+/// r.median_height and r.high_height (the 99th percentile), and r.impulsive when the latter
+/// exceeds params.gate times the former (taken at least as params.floor · L). `L` is the mean
+/// edge length. Shared by run() and the untangling stage (mesh/untangle.hpp), which leaves
+/// impulsive noise to run().
+inline std::vector<Scalar> gate_heights(const std::vector<Vec3>& p, const std::vector<Face>& faces,
+                                        const MeshTopology& topo, Scalar L, const ImpulseParams& params,
+                                        ImpulseResult& r) {
+    const std::size_t n = p.size();
+    const Scalar min_area2 = height_min_area2(L);
+    std::vector<Scalar> h(n, -1);
+    parallel_for(0, n, [&](std::size_t v) { h[v] = height(p, faces, topo, static_cast<Index>(v), min_area2); }, 1024);
+    std::vector<Scalar> defined;
+    defined.reserve(n);
+    for (Scalar x : h)
+        if (x >= 0) defined.push_back(x);
+    if (defined.size() < 20) return h;  // too few for a percentile
+    r.median_height = quantile(defined, 0.5);
+    r.high_height = quantile(defined, 0.99);
+    r.impulsive = r.high_height > params.gate * std::max(r.median_height, params.floor * L);
+    return h;
+}
+
 /// remove_impulses on positions in a sane frame; `hold` (optional) marks vertices that
 /// never move (known to be in place). `L` is the mean edge length. When vertices were put
 /// back, `labels` (optional) receives per vertex 1 (put back), 2 (unmoved) or 0, and `before`
@@ -174,20 +200,11 @@ inline ImpulseResult run(std::vector<Vec3>& p, const std::vector<Face>& faces, c
                          std::vector<unsigned char>* labels = nullptr, std::vector<Vec3>* before = nullptr) {
     ImpulseResult r;
     const std::size_t n = p.size();
-    const Scalar min_area2 = 1e-4 * L * L * L * L;  // |cross|² at an area of 0.005|e|²
-    std::vector<Scalar> h(n, -1);
-    parallel_for(0, n, [&](std::size_t v) { h[v] = height(p, faces, topo, static_cast<Index>(v), min_area2); }, 1024);
+    const Scalar min_area2 = height_min_area2(L);
+    std::vector<Scalar> h = gate_heights(p, faces, topo, L, params, r);
     progress.check();
-    std::vector<Scalar> defined;
-    defined.reserve(n);
-    for (Scalar x : h)
-        if (x >= 0) defined.push_back(x);
-    if (defined.size() < 20) return r;  // too few for a percentile
-    r.median_height = quantile(defined, 0.5);
-    r.high_height = quantile(defined, 0.99);
+    if (!r.impulsive) return r;
     Scalar scale = std::max(r.median_height, params.floor * L);
-    if (!(r.high_height > params.gate * scale)) return r;
-    r.impulsive = true;
     std::vector<Vec3> input = p;
     std::vector<Index> flagged;
     std::vector<unsigned char> is_flagged(n, 0);

@@ -42,7 +42,6 @@
 #include <kintsugi/mesh/taubin.hpp>
 #include <kintsugi/mesh/topology.hpp>
 
-#include <algorithm>
 #include <limits>
 #include <vector>
 
@@ -107,44 +106,23 @@ inline UntangleReport run(std::vector<Vec3>& p, const std::vector<Face>& faces, 
         const Scalar l = x.norm();
         x = l > 0 ? Vec3(x / l) : Vec3::Zero();
     }
-    auto offset = [&](Index v) {
-        const auto nb = topo.vertex_neighbors(v);
-        Vec3 c = Vec3::Zero();
-        for (Index u : nb) c += p[u];
-        return Vec3(c / static_cast<Scalar>(nb.size()) - p[v]);
-    };
     std::vector<Scalar> t, h;
     for (std::size_t v = 0; v < nv; ++v) {
         if (topo.vertex_neighbors(static_cast<Index>(v)).size() < 3 || n[v].squaredNorm() == 0) continue;
-        const Vec3 d = offset(static_cast<Index>(v));
+        const Vec3 d = umbrella(p, topo, static_cast<Index>(v));
         const Scalar dn = n[v].dot(d);
         h.push_back(std::abs(dn));
         t.push_back((d - dn * n[v]).norm());
     }
     if (h.empty()) return rep;
-    auto median = [](std::vector<Scalar>& x) {
-        std::nth_element(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2), x.end());
-        return x[x.size() / 2];
-    };
-    const Scalar mt = median(t), mh = median(h);
+    const Scalar mt = upper_median(std::move(t)), mh = upper_median(std::move(h));
     rep.ratio = mh > 0 ? mt / mh : (mt > 0 ? std::numeric_limits<Scalar>::infinity() : 0);
     rep.tangential_noise = rep.ratio > ratio_gate;
     if (!rep.tangential_noise || rep.reference_angle > coarse_angle) return rep;
     {  // impulsive noise: remove_impulses' gate on the heights (fertility + 10 % impulses reads 2.45)
-        const Scalar L = mean_edge_length(p, topo, false);
-        const Scalar min_area2 = 1e-4 * L * L * L * L;
-        std::vector<Scalar> heights(nv, -1);
-        parallel_for(0, nv, [&](std::size_t v) {
-            heights[v] = impulses::height(p, faces, topo, static_cast<Index>(v), min_area2);
-        }, 1024);
-        std::vector<Scalar> defined;
-        for (Scalar x : heights)
-            if (x >= 0) defined.push_back(x);
-        const ImpulseParams gate{};
-        if (defined.size() >= 20) {
-            const Scalar scale = std::max(impulses::quantile(defined, 0.5), gate.floor * L);
-            rep.impulsive = impulses::quantile(defined, 0.99) > gate.gate * scale;
-        }
+        ImpulseResult gate;
+        (void)impulses::gate_heights(p, faces, topo, mean_edge_length(p, topo, false), ImpulseParams{}, gate);
+        rep.impulsive = gate.impulsive;
         if (rep.impulsive) return rep;
     }
     std::vector<unsigned char> move(nv, 0);
@@ -165,7 +143,7 @@ inline UntangleReport run(std::vector<Vec3>& p, const std::vector<Face>& faces, 
     for (std::size_t it = 0; it < relax_steps; ++it) {
         for (std::size_t i = 0; i < active.size(); ++i) {
             const Index v = active[i];
-            const Vec3 d = offset(v);
+            const Vec3 d = umbrella(p, topo, v);
             next[i] = p[v] + step * (d - n[v].dot(d) * n[v]);
         }
         for (std::size_t i = 0; i < active.size(); ++i) p[active[i]] = next[i];

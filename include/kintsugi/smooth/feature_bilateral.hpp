@@ -962,11 +962,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         frame.to_world(input.vertices);
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (params.control.stop.stop_requested()) {
-        FeatureBilateralResult cancelled;
-        cancelled.status = Status::cancelled;
-        return cancelled;
-    }
+    if (params.control.stop.stop_requested()) return detail::cancelled_result<FeatureBilateralResult>();
     FeatureBilateralResult result = run(input);
     result.untangle = untangled;
     result.timings.insert(result.timings.begin(), StageTiming{"untangle", seconds});
