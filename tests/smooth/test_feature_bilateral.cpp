@@ -629,16 +629,27 @@ TEST_CASE("open meshes: boundary edges are not sharp, boundary vertices move onl
             patch.faces.push_back({a, a + 1, a + n + 2});
             patch.faces.push_back({a, a + n + 2, a + n + 1});
         }
-    auto smoothed = patch;
-    REQUIRE(ks::smooth_feature_bilateral(smoothed).status == ks::Status::ok);
-    double before = 0, after = 0, tangential = 0;
-    for (std::size_t v = 0; v < patch.vertices.size(); ++v) {
-        before += patch.vertices[v].z() * patch.vertices[v].z();
-        after += smoothed.vertices[v].z() * smoothed.vertices[v].z();
-        tangential = std::max(tangential, (smoothed.vertices[v] - patch.vertices[v]).head<2>().norm());
+    // The filters (the risk selection off: on this flat patch it returns Taubin's result, whose
+    // umbrella steps pull an open border inward, the corners by 1.7|e|; moving border vertices
+    // along their normals only, as the low-pass does, cost CGAL's elephant-with-holes 2.5-5 deg:
+    // docs/methods/feature_bilateral.md, "Faces coplanar by accident").
+    for (const bool select : {false, true}) {
+        auto smoothed = patch;
+        const auto r = ks::smooth_feature_bilateral(smoothed, {.risk_selection = select});
+        REQUIRE(r.status == ks::Status::ok);
+        double before = 0, after = 0, tangential = 0;
+        for (std::size_t v = 0; v < patch.vertices.size(); ++v) {
+            before += patch.vertices[v].z() * patch.vertices[v].z();
+            after += smoothed.vertices[v].z() * smoothed.vertices[v].z();
+            tangential = std::max(tangential, (smoothed.vertices[v] - patch.vertices[v]).head<2>().norm());
+        }
+        MESSAGE("open patch, risk selection " << select << std::string(r.risk.taubin ? " (Taubin's result)" : "")
+                                              << ": rms height " << std::sqrt(before / double(patch.vertices.size()))
+                                              << " -> " << std::sqrt(after / double(patch.vertices.size()))
+                                              << ", largest move across the plane " << tangential);
+        CHECK(after < before / 4);  // the rms height at least halves
+        if (!select) CHECK(tangential < 0.05);  // no shrinking of the boundary
     }
-    CHECK(after < before / 4);  // the rms height at least halves
-    CHECK(tangential < 0.05);  // no shrinking of the boundary
 }
 
 TEST_CASE("non-manifold and degenerate input work and give finite results") {
@@ -1679,7 +1690,7 @@ TEST_CASE("risk selection: skipped where its estimates do not hold, bad values, 
     SUBCASE("the clean mesh: its normals no further from the clean ones than with the filters alone") {
         // The noise estimate reads a coarse clean mesh's detail as noise, and the selection
         // compares the filters with Taubin on it like on a noisy one: Taubin here, 3.60 deg /
-        // 0.087|e| against the filters' 4.33 deg / 0.052|e| (docs/methods/feature_bilateral.md,
+        // 0.087|e| against the filters' 4.37 deg / 0.053|e| (docs/methods/feature_bilateral.md,
         // "Faces coplanar by accident").
         auto a = clean, b = clean;
         const auto r = ks::smooth_feature_bilateral(a, {.risk_selection = true});

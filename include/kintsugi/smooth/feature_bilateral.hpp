@@ -629,106 +629,60 @@ inline std::size_t normal_iterations_from_noise(Scalar r) {
 /// Most Taubin steps an unset lowpass_iterations runs.
 inline constexpr std::size_t max_lowpass_steps = 20;
 
-/// Taubin pairs that keep open borders in place, for the low-pass and the risk selection's
-/// Taubin result: the vertices on rim edges (boundary edges, none non-manifold) move along
-/// their area-weighted normal only (their umbrella points into the surface: moving along it
-/// pulls hole rims and open borders inward), those on non-manifold or self edges and those
-/// `hold` flags stay fixed, the others take taubin_smooth's pairs. On a closed manifold mesh
-/// with nothing held, k calls of pair() are taubin_smooth's k pairs bit for bit.
-class RimTaubin {
-public:
-    RimTaubin(const MeshTopology& topo, const std::vector<Face>& F, std::size_t nv,
-              const std::vector<unsigned char>* hold = nullptr)
-        : movable_(nv, 1) {
-        const bool held = hold && !hold->empty();
-        if (held)
-            for (std::size_t v = 0; v < nv; ++v) movable_[v] = !(*hold)[v];
-        std::vector<std::uint8_t> rim_flag(nv, 0);  // 1 rim, 2 non-manifold or self edge (fixed)
-        for (std::size_t e = 0; e < topo.num_edges(); ++e) {
-            std::size_t nf = topo.edge_faces(e).size();
-            if (nf == 2) continue;
-            if (nf > 2) {  // a repeated face (same corners) is counted once
-                std::vector<Face> distinct;
-                for (Index f : topo.edge_faces(e)) {
-                    Face c = F[f];
-                    std::sort(c.begin(), c.end());
-                    if (std::find(distinct.begin(), distinct.end(), c) == distinct.end()) distinct.push_back(c);
-                    if (distinct.size() > 2) break;
-                }
-                nf = distinct.size();
-                if (nf == 2) continue;
-            }
-            const auto& ab = topo.edges()[e];
-            const bool rim_edge = nf == 1 && ab[0] != ab[1];  // a self edge (repeated index) is no rim
-            for (Index v : ab) {
-                movable_[v] = 0;
-                rim_flag[v] = std::max<std::uint8_t>(rim_flag[v], rim_edge ? 1 : 2);
-            }
-        }
-        for (std::size_t v = 0; v < nv; ++v)
-            if (rim_flag[v] == 1 && !(held && (*hold)[v])) rim_.push_back(static_cast<Index>(v));
-        rim_next_.resize(rim_.size());
-    }
-
-    /// One λ|μ pair on V (faces F, the topology given to the constructor): the inner vertices'
-    /// pair first, then the rim's λ and μ steps.
-    void pair(std::vector<Vec3>& V, const std::vector<Face>& F, const MeshTopology& topo, const TaubinParams& params,
-              Progress& quiet) {
-        detail::taubin_smooth(V, topo, movable_, TaubinParams{.iterations = 1, .lambda = params.lambda, .mu = params.mu}, quiet);
-        rim_step(V, F, topo, params.lambda);
-        rim_step(V, F, topo, params.mu);
-    }
-
-    /// `iterations` pairs; progress reported on `progress` (0 to 1 of its stage).
-    void run(std::vector<Vec3>& V, const std::vector<Face>& F, const MeshTopology& topo, const TaubinParams& params,
-             Progress& progress) {
-        const RunControl quiet_control{{}, params.control.stop};
-        Progress quiet(quiet_control);
-        for (std::size_t it = 0; it < params.iterations; ++it) {
-            progress.update(static_cast<double>(it) / static_cast<double>(params.iterations));
-            pair(V, F, topo, params, quiet);
-        }
-    }
-
-private:
-    void rim_step(std::vector<Vec3>& V, const std::vector<Face>& F, const MeshTopology& topo, Scalar factor) {
-        parallel_for(0, rim_.size(), [&](std::size_t i) {
-            const Index v = rim_[i];
-            Vec3 n = Vec3::Zero();  // area-weighted normal
-            for (Index f : topo.vertex_faces(v))
-                n += (V[F[f][1]] - V[F[f][0]]).cross(V[F[f][2]] - V[F[f][0]]);
-            const Scalar len = n.norm();
-            rim_next_[i] = len > 0 ? V[v] + factor * n.dot(detail::umbrella(V, topo, v)) / (len * len) * n : V[v];
-        }, 1024);
-        for (std::size_t i = 0; i < rim_.size(); ++i) V[rim_[i]] = rim_next_[i];
-    }
-
-    std::vector<std::uint8_t> movable_;
-    std::vector<Index> rim_;
-    std::vector<Vec3> rim_next_;
-};
-
 /// The low-pass before the filters (see "Strong noise: a low-pass first"), called when at
 /// least one step is to run: `given` Taubin steps, or (unset) steps until the noise
 /// estimate `noise` (updated after each step) is at most target·|e| with |e| the
 /// low-passed mesh's mean edge length, at most max_lowpass_steps. Rim vertices move along
-/// their normal only (RimTaubin; fixed, they kept their noise: CGAL's elephant-with-holes,
-/// half its vertices on 106 rims, at 0.5|e|: 23.3° fixed, 20.8° moving along the normal);
-/// those of non-manifold edges stay fixed. Returns the steps run; `noise` then holds the
-/// estimate after the last (unchanged when `given`: the estimate is not repeated).
+/// their normal only; those of non-manifold edges stay fixed. Returns the steps run;
+/// `noise` then holds the estimate after the last (unchanged when `given`: the estimate is
+/// not repeated).
 inline std::size_t lowpass(std::vector<Vec3>& V, const std::vector<Face>& F, const MeshTopology& topo,
                            std::optional<std::size_t> given, Scalar target, NoiseLevel& noise,
                            const RunControl& control, Progress& progress,
                            const std::vector<unsigned char>* hold = nullptr) {
     const std::size_t steps = given ? *given : max_lowpass_steps;
-    RimTaubin taubin(topo, F, V.size(), hold);
+    std::vector<std::uint8_t> movable(V.size(), 1);
+    if (hold && !hold->empty())
+        for (std::size_t v = 0; v < V.size(); ++v) movable[v] = !(*hold)[v];
+    // Rim vertices (boundary edges only, none non-manifold) move too, but only along their
+    // normal: their umbrella points into the surface, and moving along it would pull hole
+    // rims and open borders inward; fixed, they kept their noise (CGAL's elephant-with-holes,
+    // half its vertices on 106 rims, at 0.5|e|: 23.3° fixed, 20.8° moving along the normal).
+    std::vector<std::uint8_t> rim_flag(V.size(), 0);  // 1 rim, 2 non-manifold or self edge (fixed)
+    for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+        const std::size_t nf = topo.edge_faces(e).size();
+        if (nf == 2) continue;
+        const auto& ab = topo.edges()[e];
+        const bool rim_edge = nf == 1 && ab[0] != ab[1];  // a self edge (repeated index) is no rim
+        for (Index v : ab) {
+            movable[v] = 0;
+            rim_flag[v] = std::max<std::uint8_t>(rim_flag[v], rim_edge ? 1 : 2);
+        }
+    }
+    std::vector<Index> rim;
+    for (std::size_t v = 0; v < V.size(); ++v)
+        if (rim_flag[v] == 1 && !(hold && !hold->empty() && (*hold)[v])) rim.push_back(static_cast<Index>(v));
+    std::vector<Vec3> rim_next(rim.size());
+    auto rim_step = [&](Scalar factor) {
+        parallel_for(0, rim.size(), [&](std::size_t i) {
+            const Index v = rim[i];
+            Vec3 n = Vec3::Zero();  // area-weighted normal
+            for (Index f : topo.vertex_faces(v))
+                n += (V[F[f][1]] - V[F[f][0]]).cross(V[F[f][2]] - V[F[f][0]]);
+            const Scalar len = n.norm();
+            rim_next[i] = len > 0 ? V[v] + factor * n.dot(detail::umbrella(V, topo, v)) / (len * len) * n : V[v];
+        }, 1024);
+        for (std::size_t i = 0; i < rim.size(); ++i) V[rim[i]] = rim_next[i];
+    };
     // The Taubin steps and the estimates check for cancellation; only this loop reports.
     const RunControl quiet_control{{}, control.stop};
     Progress quiet(quiet_control);
     const TaubinParams one{.iterations = 1};
     std::size_t done = 0;
     while (done < steps) {
-        taubin.pair(V, F, topo, one, quiet);
+        detail::taubin_smooth(V, topo, movable, one, quiet);
+        rim_step(one.lambda);
+        rim_step(one.mu);
         ++done;
         progress.update(static_cast<double>(done) / static_cast<double>(steps));
         if (given) continue;
@@ -1478,16 +1432,13 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                 // tuned shapes).
                 result.risk.taubin = risk_filters > 0 && risk_taubin < risk_ratio * risk_filters;
                 {
-                    // In the input's order, on the input's faces: on a closed manifold mesh
-                    // smooth_taubin's result bit for bit (the internal order sums each one-ring in
-                    // another order: ~1e-9|e| apart 1e6 from the origin); open borders move along
-                    // their normals only (RimTaubin: an open 20 × 20 patch's corners moved 1.7|e|
-                    // inward with smooth_taubin's steps).
+                    // In the input's order, on the input's faces: smooth_taubin's result bit for bit
+                    // (the internal order sums each one-ring in another order: ~1e-9|e| apart 1e6 from
+                    // the origin).
                     taubin = IndexedMesh{input.vertices, input.faces, {}};
                     frame.to_local(taubin.vertices);
                     const MeshTopology input_topo(nv, taubin.faces);
-                    RimTaubin rim_taubin(input_topo, taubin.faces, nv);  // open borders kept in place
-                    rim_taubin.run(taubin.vertices, taubin.faces, input_topo, TaubinParams{.iterations = k}, progress);
+                    (void)taubin_smooth(taubin.vertices, input_topo, {}, TaubinParams{.iterations = k}, progress);
                     if (!result.risk.taubin) {
                         // Taubin's result is also kept on a mesh too coarse for the filters: where
                         // the median angle θ between neighbouring faces of Taubin's result exceeds
@@ -1534,7 +1485,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         const auto t2 = std::chrono::steady_clock::now();
                         std::vector<Vec3> probe_taubin(nv);
                         for (std::size_t v = 0; v < nv; ++v) probe_taubin[v] = probe_input(v);
-                        rim_taubin.run(probe_taubin, taubin.faces, input_topo, TaubinParams{.iterations = k}, progress);
+                        (void)taubin_smooth(probe_taubin, input_topo, {}, TaubinParams{.iterations = k}, progress);
                         auto corner = [&](int i, Index v) -> Vec3 {
                             switch (i) {
                                 case 0: return y[so.order[v]];
