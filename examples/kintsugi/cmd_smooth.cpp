@@ -203,6 +203,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
             auto& un = j["untangle"];
             un["ratio"] = r.untangle.ratio;
             un["tangential_noise"] = r.untangle.tangential_noise;
+            un["impulsive"] = r.untangle.impulsive;
             un["reference_angle_deg"] = r.untangle.reference_angle * 180 / std::numbers::pi;
             un["folded_faces"] = r.untangle.folded_faces;
             un["moved_vertices"] = r.untangle.moved_vertices;

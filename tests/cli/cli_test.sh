@@ -261,15 +261,15 @@ out += ["3 %d %d %d" % tuple(f) for f in F]
 open(sys.argv[2], "w").write("\n".join(out) + "\n")
 PYEOF
 # Risk selection: the bunny with Gaussian noise of 0.5|e| in random directions (a smooth
-# shape: Taubin's result kept), the clean bunny (exact planes hold vertices: not compared).
+# shape: Taubin's result kept), the clean Twelve (exact planes hold vertices: not compared).
 "$PY" "$work/noisy_mesh.py" "$mesh" "$work/noisy_bunny.off" 7 1 0.5
 expect 0 "smooth --risk-selection (noisy bunny)" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_risk.off" --risk-selection --json
 json_check "smooth: risk selection keeps Taubin's result on the noisy bunny" "j['parameters']['risk_selection'] is True and j['risk_selection']['evaluated'] is True and j['risk_selection']['result']=='taubin' and j['risk_selection']['taubin_iterations']>0 and 0<j['risk_selection']['taubin_rms']**2<0.75*j['risk_selection']['filters_rms']**2 and 0<j['risk_selection']['sigma']<=1.1*j['noise']['sigma'] and j['risk_selection']['note']=='' and 'risk: Taubin sweep' in j['timings'] and j['risk_selection']['normal_veto'] is False and j['risk_selection']['normal_difference']<0.03 and 'normal_z' in j['risk_selection'] and j['risk_selection']['coarse'] is False and j['risk_selection']['recheck'] is False and j['risk_selection']['recheck_probes']==0"
-expect 0 "smooth --risk-selection (clean bunny)" -- "$bin" smooth "$mesh" "$work/sm_risk2.off" --risk-selection --json
-json_check "smooth: risk selection not compared on the clean bunny (held vertices)" "j['risk_selection']['evaluated'] is False and j['risk_selection']['result']=='filters' and 'held' in j['risk_selection']['note'] and j['held_vertices']>0"
+expect 0 "smooth --risk-selection (clean Twelve)" -- "$bin" smooth "$data/twelve.obj" "$work/sm_risk2.off" --risk-selection --json
+json_check "smooth: risk selection not compared on the clean Twelve (held vertices)" "j['risk_selection']['evaluated'] is False and j['risk_selection']['result']=='filters' and 'held' in j['risk_selection']['note'] and j['held_vertices']>0"
 expect 0 "smooth (noisy bunny, defaults)" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_risk3.off" --json
 json_check "smooth: the risk selection runs by default" "j['parameters']['risk_selection'] is True and j['risk_selection']['result']=='taubin'"
-json_check "smooth: noise in random directions unfolds folded faces first" "j['parameters']['untangle'] is True and j['untangle']['tangential_noise'] is True and j['untangle']['ratio']>1.2 and j['untangle']['folded_faces']>0 and j['untangle']['moved_vertices']>0 and 'reference_angle_deg' in j['untangle'] and 'untangle' in j['timings']"
+json_check "smooth: noise in random directions unfolds folded faces first" "j['parameters']['untangle'] is True and j['untangle']['tangential_noise'] is True and j['untangle']['ratio']>1.2 and j['untangle']['folded_faces']>0 and j['untangle']['moved_vertices']>0 and j['untangle']['impulsive'] is False and 'reference_angle_deg' in j['untangle'] and 'untangle' in j['timings']"
 expect 0 "smooth --no-untangle" -- "$bin" smooth "$work/noisy_bunny.off" "$work/sm_nountangle.off" --no-untangle --json
 json_check "smooth: --no-untangle leaves the folds to the filters" "j['parameters']['untangle'] is False and 'untangle' not in j"
 if cmp -s "$work/sm_risk3.off" "$work/sm_nountangle.off"; then bad "smooth: --no-untangle wrote the same mesh"; else ok; fi
@@ -283,7 +283,7 @@ if [ -e "$work/sm_both.off" ]; then bad "smooth: contradictory risk flags wrote 
 # the same without the stage.
 "$PY" "$work/noisy_mesh.py" "$mesh" "$work/impulsive_bunny.off" 11 0.1 1
 expect 0 "smooth (impulsive bunny)" -- "$bin" smooth "$work/impulsive_bunny.off" "$work/sm_imp.off" --json
-json_check "smooth: impulses put back, the rest held, the input's noise reported" "j['parameters']['impulse_removal'] is True and j['impulses']['impulsive'] is True and j['impulses']['put_back']>0 and j['impulses']['dense'] is False and j['held_vertices']>j['impulses']['put_back'] and j['impulses']['input_noise']['relative']>j['noise']['relative'] and 'impulses' in j['timings'] and 'impulsive' in j['risk_selection']['note']"
+json_check "smooth: impulses put back, the rest held, the input's noise reported" "j['parameters']['impulse_removal'] is True and j['impulses']['impulsive'] is True and j['impulses']['put_back']>0 and j['impulses']['dense'] is False and j['held_vertices']>j['impulses']['put_back'] and j['impulses']['input_noise']['relative']>j['noise']['relative'] and 'impulses' in j['timings'] and 'impulsive' in j['risk_selection']['note'] and j['untangle']['moved_vertices']==0"
 expect 0 "smooth --no-impulse-removal (impulsive bunny)" -- "$bin" smooth "$work/impulsive_bunny.off" "$work/sm_noimp.off" --no-impulse-removal --json
 json_check "smooth: --no-impulse-removal leaves the impulses to the filters" "j['parameters']['impulse_removal'] is False and 'impulses' not in j"
 if cmp -s "$work/sm_imp.off" "$work/sm_noimp.off"; then bad "smooth: --no-impulse-removal wrote the same mesh"; else ok; fi

@@ -18,7 +18,7 @@
 ///     amount on a regular grid are coplanar by accident. The tolerances are an order above
 ///     a file's rounding (Twelve0.5Impulsive's unmoved vertices: within 1e-4|e|) and below
 ///     what Gaussian noise reaches by accident: noise in random directions, whose component
-///     along the normal is often near 0, anchored 1-2 % of the faces at 0.5° / 0.01|e|
+///     along the normal is often near 0, anchored 1-3 % of the faces at 0.5° / 0.01|e|
 ///     (bunny00 at 0.1|e|: 1,391 of 75,408), so its vertices were held as if unmoved.
 ///  2. Each vertex collects the distinct planes of the anchored faces within 6 vertex
 ///     rings, at most 6, the nearest first (Jacobi passes over the edges, so the cost is
