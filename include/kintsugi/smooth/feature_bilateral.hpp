@@ -158,11 +158,14 @@
 /// are in smooth/detail/coplanar_creases.hpp. Measured (docs/methods/feature_bilateral.md;
 /// sharp-edge P/R, normal error with the defaults; voting tensor alone → with the stage
 /// and the held vertices): Twelve0.5Impulsive (the pair it was tuned on) 1.0/0.019,
-/// 7.67° → 0.907/0.833, 3.99°; held out, generated (10 % of the vertices moved along the
+/// 7.67° → 0.856/0.819, 4.02°; held out, generated (10 % of the vertices moved along the
 /// normals by Gaussian amounts of σ = |e|): Twelve 0.034/0.006, 7.57° → 0.816/0.971,
 /// 1.11°; the Block 0.768/0.933, 3.71° → 0.761/0.968, 1.00°; SharpSphere 7.74° → 7.32°;
 /// curved shapes are unchanged or slightly better (bunny00 4.77° → 4.74°, fertility
-/// 9.65° → 9.49°). Cost: one pass over the faces' neighbourhoods, and when the stage runs
+/// 9.65° → 9.49°). With the tighter anchoring of 2026-12-07 (0.1° / 0.002|e|; noise in
+/// random directions anchored faces by accident): Twelve0.5Impulsive 0.907/0.833, 3.99°;
+/// Twelve + 10 % 0.828/0.971, 1.10°; the Block 1.03°; SharpSphere 3.29° (with the impulse
+/// removal; 3.19° before). Cost: one pass over the faces' neighbourhoods, and when the stage runs
 /// seven Jacobi passes over the edges.
 ///
 /// ## Impulsive noise on any shape: the moved vertices put back (on by default)
