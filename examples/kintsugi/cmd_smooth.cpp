@@ -2,7 +2,7 @@
 // License, v. 2.0. If a copy of the MPL was not distributed with this
 // file, You can obtain one at https://mozilla.org/MPL/2.0/.
 // `kintsugi smooth IN OUT [--a 2 --b 0.1 --c 1 --d D] [--edge-threshold T] [--voting-cube 3]
-// [--edge-iterations N] [--face-iterations N] [--no-features] [--no-coplanar-creases] [--features FEATURES.ply]
+// [--edge-iterations N] [--face-iterations N] [--no-features] [--no-coplanar-creases] [--no-straight-creases] [--features FEATURES.ply]
 // [--preset default|paper] [--lowpass-noise F] [--lowpass-iterations N] [--risk-selection | --no-risk-selection]
 // [--no-impulse-removal] [--no-untangle]`: feature-aware bilateral smoothing (faces folded over by
 // noise along the surface unfolded first, unless --no-untangle; vertices impulsive noise moved put
@@ -26,6 +26,7 @@ struct SmoothOptions {
     kintsugi::FeatureBilateralParams params;
     bool no_features = false;
     bool no_coplanar = false;
+    bool no_straight = false;
     bool risk_selection = false;     // --risk-selection: the default; kept for older command lines
     bool no_risk_selection = false;  // --no-risk-selection: the filters' result always
     bool no_impulse_removal = false; // --no-impulse-removal: the filters see impulsive noise as it is
@@ -88,6 +89,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
     cmd.add_flag("--no-coplanar-creases", o->no_coplanar,
                  "Do not read creases from faces that impulsive noise left exactly in their planes (the voting "
                  "tensor alone; the paper preset never reads them)");
+    cmd.add_flag("--no-straight-creases", o->no_straight,
+                 "Skip the second detection with a narrow normal kernel that adds creases on straight runs with "
+                 "two distinct sides (the paper preset never runs it)");
     cmd.add_flag("--no-risk-selection", o->no_risk_selection,
                  "Keep the filters' result always: skip the Taubin run (step count of least estimated risk) whose "
                  "result is otherwise kept where its estimated error along the normals is clearly lower (smooth "
@@ -128,6 +132,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         }
         params.features = !o->no_features;
         if (o->no_coplanar) params.detection.coplanar_creases = false;
+        if (o->no_straight) params.detection.straight_creases = false;
         if (o->d_option->count() > 0) params.d = o->d;
         if (o->face_iterations_option->count() > 0) params.face_iterations = o->face_iterations;
         if (o->lowpass_iterations_option->count() > 0) params.lowpass_iterations = o->lowpass_iterations;
@@ -165,6 +170,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["edge_threshold"] = params.detection.edge_threshold;
         j["parameters"]["voting_cube"] = params.detection.voting_cube;
         j["parameters"]["coplanar_creases"] = params.detection.coplanar_creases;
+        j["parameters"]["straight_creases"] = params.detection.straight_creases;
         j["parameters"]["edge_iterations"] = params.edge_iterations;
         j["parameters"]["face_iterations"] = r.face_iterations;
         j["parameters"]["normal_iterations"] = r.normal_iterations;
@@ -234,6 +240,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["feature_vertices"] = r.feature_vertices;
         j["anchored_faces"] = r.features.anchored_faces;
         j["coplanar_sharp_edges"] = r.features.coplanar_sharp_edges;
+        j["straight_sharp_edges"] = r.features.straight_sharp_edges;
         j["held_vertices"] = r.held_vertices;
         j["degenerate_faces"] = r.degenerate_faces;
         j["mean_edge_length"] = r.features.mean_edge_length;

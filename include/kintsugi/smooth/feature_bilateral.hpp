@@ -298,6 +298,9 @@ struct SharpFeatures {
     /// "Impulsive noise" in the file comment).
     std::size_t anchored_faces = 0;
     std::size_t coplanar_sharp_edges = 0;
+    /// Sharp edges the straight-crease detection added to the voting tensor's
+    /// (SharpFeatureParams::straight_creases; "Straight creases" in the file comment).
+    std::size_t straight_sharp_edges = 0;
 };
 
 /// Result of detect_sharp_features().
@@ -402,7 +405,7 @@ struct FeatureBilateralParams {
         p.d = 0.1;
         p.detection = {.voting_cube = 3, .edge_threshold = 0.251, .direction_threshold = 0.9,
                        .prefilter_iterations = 0, .crease_test = false, .presmooth_iterations = 0,
-                       .coplanar_creases = false};
+                       .coplanar_creases = false, .straight_creases = false};
         p.edge_iterations = 2;
         p.face_iterations = 2;
         p.normal_iterations = 1;
@@ -720,7 +723,8 @@ inline std::size_t face_iterations_after_lowpass(Scalar r0) {
 
 inline SharpFeatures to_public(FeatureData&& fd, Scalar L) {
     return {std::move(fd.strength), std::move(fd.eigenvalues), std::move(fd.eigenvectors),
-            std::move(fd.sharp_edges), fd.candidate_vertices, L, fd.anchored_faces, fd.coplanar_sharp_edges};
+            std::move(fd.sharp_edges), fd.candidate_vertices, L, fd.anchored_faces, fd.coplanar_sharp_edges,
+            fd.straight_sharp_edges};
 }
 
 /// The mesh with vertices and faces renumbered along a Morton curve (ties by index), so

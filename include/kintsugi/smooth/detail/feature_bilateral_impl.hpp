@@ -8,6 +8,7 @@
 /// (vector<Vec3> positions + vector<Face>). Not part of the API.
 
 #include <kintsugi/core/control.hpp>
+#include <kintsugi/core/disjoint_sets.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
 #include <kintsugi/core/types.hpp>
@@ -29,6 +30,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <iterator>
 #include <limits>
 #include <utility>
 #include <string>
@@ -258,20 +260,27 @@ inline Reach reach_faces(const Barriers& b, const std::vector<Vec3>& centroid, s
     }
     return {&mark, stamp};
 }
-/// The range weight of filter 3, g = exp(−a·Y²) for Y² ≤ 1 and 0 beyond (a neighbour
-/// across a sharp edge), for a·Y² ≤ 1.4 (σ_mg ≥ 0.6): exp(x) = p(x/8)⁸ with p the
-/// degree-5 Taylor polynomial, relative error below 1e-6, no branch and no table, in
-/// the same arithmetic for one value and for four (SSE2).
-inline float range_weight(float Y2, float a) {
+/// The range kernel of filter 3 on Y = ‖n_t − n_t*‖: g(Y) = exp(−Y²/(2σ²)) for Y ≤ cut, 0
+/// beyond (a neighbour across a sharp edge). The paper's: σ = 0.6, cut 1 (normals 60° apart).
+struct RangeKernel {
+    Scalar sigma = 0.6;
+    Scalar cut = 1;
+};
+
+/// The range weight of filter 3, g = exp(−a·Y²) for Y² ≤ cut2 and 0 beyond: exp(x) = p(x/8)⁸
+/// with p the degree-5 Taylor polynomial, relative error below 1e-6 for a·Y² ≤ 1.4 (σ 0.6,
+/// cut 1) and below 2e-4 for a·Y² ≤ 4 (σ 0.3, cut 0.85: the straight-crease detection), no
+/// branch and no table, in the same arithmetic for one value and for four (SSE2).
+inline float range_weight(float Y2, float a, float cut2 = 1.f) {
     const float x = -a * Y2 * 0.125f;
     float e = 1 + x * (1 + x * (0.5f + x * (1.f / 6 + x * (1.f / 24 + x * (1.f / 120)))));
     e *= e;
     e *= e;
     e *= e;
-    return Y2 <= 1.f ? e : 0.f;
+    return Y2 <= cut2 ? e : 0.f;
 }
 #if defined(__SSE2__)
-inline __m128 range_weight(__m128 Y2, float a) {
+inline __m128 range_weight(__m128 Y2, float a, float cut2 = 1.f) {
     const __m128 x = _mm_mul_ps(Y2, _mm_set1_ps(-a * 0.125f));
     __m128 e = _mm_add_ps(_mm_set1_ps(1.f / 24), _mm_mul_ps(x, _mm_set1_ps(1.f / 120)));
     e = _mm_add_ps(_mm_set1_ps(1.f / 6), _mm_mul_ps(x, e));
@@ -281,13 +290,13 @@ inline __m128 range_weight(__m128 Y2, float a) {
     e = _mm_mul_ps(e, e);
     e = _mm_mul_ps(e, e);
     e = _mm_mul_ps(e, e);
-    return _mm_and_ps(e, _mm_cmple_ps(Y2, _mm_set1_ps(1.f)));
+    return _mm_and_ps(e, _mm_cmple_ps(Y2, _mm_set1_ps(cut2)));
 }
 #endif
 
 /// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
 /// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
-/// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°).
+/// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°) (`kernel`).
 /// Applied `iterations` times to `normals` with the positions fixed: the cube
 /// neighbourhoods and their spatial weights a_t*·f are found once (two grid
 /// passes, CSR arrays linear in the mesh) and reused by every pass.
@@ -295,10 +304,11 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
                                         Scalar scale, std::size_t iterations, Progress& progress, double from,
                                         double to, const Barriers* barriers = nullptr,
                                         const std::vector<unsigned char>* near = nullptr,
-                                        Neighbourhoods* lists = nullptr, bool keep_sets = false) {
+                                        Neighbourhoods* lists = nullptr, bool keep_sets = false,
+                                        const RangeKernel& kernel = {}) {
     const std::size_t nf = normals.size();
     if (iterations == 0 || nf == 0) return normals;
-    const Scalar s_mf = scale / 2, s_mg = 0.6, h = scale;
+    const Scalar s_mf = scale / 2, s_mg = kernel.sigma, h = scale;
     const double q2 = from + (to - from) * 0.3;
     Neighbourhoods local;
     Neighbourhoods& nb = lists ? *lists : local;
@@ -336,8 +346,9 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
     });
     nb.items = nf;
     nb.scale = h;
-    // g(Y) = exp(−Y²/(2σ_mg²)), 0 for Y > 1, evaluated by range_weight (below).
+    // g(Y) = exp(−Y²/(2σ_mg²)), 0 for Y > cut, evaluated by range_weight (above).
     const float a_mg = static_cast<float>(1 / (2 * s_mg * s_mg));
+    const float cut2 = static_cast<float>(kernel.cut * kernel.cut);
     // The passes run in single precision (normals as padded float4: half the memory
     // traffic of the random neighbour reads); the result is renormalised in double.
     using N4 = Eigen::Vector4f;
@@ -368,7 +379,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
                     _MM_TRANSPOSE4_PS(n0, n1, n2, n3);  // n0, n1, n2: x, y, z of the four
                     const __m128 dx = _mm_sub_ps(tx, n0), dy = _mm_sub_ps(ty, n1), dz = _mm_sub_ps(tz, n2);
                     const __m128 Y2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
-                    const __m128 w = _mm_mul_ps(_mm_loadu_ps(nbrs.weight + j), range_weight(Y2, a_mg));
+                    const __m128 w = _mm_mul_ps(_mm_loadu_ps(nbrs.weight + j), range_weight(Y2, a_mg, cut2));
                     sx = _mm_add_ps(sx, _mm_mul_ps(w, n0));
                     sy = _mm_add_ps(sy, _mm_mul_ps(w, n1));
                     sz = _mm_add_ps(sz, _mm_mul_ps(w, n2));
@@ -385,7 +396,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
             for (; j < nbrs.size; ++j) {
                 const float* nq = normal + 4 * std::size_t{nbrs.index[j]};
                 const float dx = nt.x() - nq[0], dy = nt.y() - nq[1], dz = nt.z() - nq[2];
-                const float w = nbrs.weight[j] * range_weight(dx * dx + dy * dy + dz * dz, a_mg);
+                const float w = nbrs.weight[j] * range_weight(dx * dx + dy * dy + dz * dz, a_mg, cut2);
                 ax += w * nq[0];
                 ay += w * nq[1];
                 az += w * nq[2];
@@ -414,6 +425,7 @@ struct FeatureData {
     std::size_t candidate_vertices = 0;
     std::size_t anchored_faces = 0;          // coplanar_creases.hpp
     std::size_t coplanar_sharp_edges = 0;
+    std::size_t straight_sharp_edges = 0;      // added by the straight-crease detection
 };
 
 /// The cosine of the crease angle an edge-strength threshold implies: s = tan²(φ/2) for a
@@ -425,7 +437,7 @@ inline Scalar crease_cosine(Scalar edge_threshold) { return std::cos(2 * std::at
 inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
                                    const FaceGeometry& geo, Scalar mean_edge, const SharpFeatureParams& st,
                                    Progress& progress, double from, double to, Workspace& ws,
-                                   bool keep_sets = false) {
+                                   bool keep_sets = false, const RangeKernel& kernel = {}) {
     const std::size_t nv = V.size();
     FeatureData out;
     out.strength.assign(nv, 0);
@@ -439,7 +451,7 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
     const double mid = from + (to - from) * (st.prefilter_iterations ? 0.5 : 0.0);
     const std::vector<Vec3> N = st.prefilter_iterations
         ? filter_normals(geo, grid, geo.normal, st.prefilter_scale * mean_edge, st.prefilter_iterations, progress, from, mid,
-                         nullptr, nullptr, &ws.lists, keep_sets)
+                         nullptr, nullptr, &ws.lists, keep_sets, kernel)
         : geo.normal;
     const auto& A = geo.area;
     blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
@@ -518,6 +530,7 @@ struct FilterSettings {
     std::size_t normal_iterations = 1;
     std::size_t vertex_iterations = 1;
     Scalar vertex_c = 0;  // spatial scale of filter 4 when not c (0: c)
+    RangeKernel kernel{};  // filter 3's range kernel
 };
 
 /// Filters 1) and 2): sharp-edge directions, then sharp-edge vertices. Moves only the
@@ -623,7 +636,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
 
     // 3) normals, normal_iterations times.
     std::vector<Vec3> nf_ = filter_normals(g, grid, g.normal, st.c * L, st.normal_iterations, progress, from, mid,
-                                           barriers, &near_face, &ws.lists, keep_sets);
+                                           barriers, &near_face, &ws.lists, keep_sets, st.kernel);
 
     // 4) vertices: r = i, q = t* (same cube, around p_i); I = Π_t, w = a_t*. Repeated
     // vertex_iterations times with the filtered normals n'_t, the centroids following
@@ -688,26 +701,182 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
 
 namespace kintsugi::detail::fbs {
 
+/// The straight-crease detection (SharpFeatureParams::straight_creases): a second detection
+/// whose pre-smoothing and prefilter use a narrow range kernel, so that they do not average
+/// across a crease of 53-65° once noise tilts the normals (the default kernel admits normals
+/// 60° apart); its edges are kept only on straight runs whose two sides are distinct planes,
+/// which the noise-made creases of a curved surface are not (they zigzag across the mesh, or
+/// their sides bend by less than a face's width). Set on the noise tables' CAD shapes (the
+/// Block, SharpSphere, Twelve), checked on the curved ones and on 13 held-out shapes
+/// (docs/methods/feature_bilateral.md, "Straight creases").
+struct StraightCreaseConstants {
+    /// Filter 3's range kernel in that detection (σ, cut; the default's 0.6, 1).
+    static constexpr Scalar kernel_sigma = 0.3, kernel_cut = 0.85;
+    /// Two edges at a vertex continue each other when they turn by at most 30°.
+    static constexpr Scalar turn_cos = 0.8660254037844386;
+    /// A run (edges linked by such continuations) is kept from 8 edges ...
+    static constexpr std::size_t min_run = 8;
+    /// ... when the input's summed face area vectors on its two sides are at least 45° apart
+    /// (a prism's 30° sides are not creases to add; Twelve's 63° ones are).
+    static constexpr Scalar side_cos = 0.7071067811865476;
+    /// Edges per vertex whose pairs are tested (bounded cost at a high-valence vertex).
+    static constexpr std::size_t max_edges_at_vertex = 8;
+};
+
+/// The edges of `edges` (vertex pairs, a < b, sorted) on straight two-sided runs
+/// (StraightCreaseConstants): continuations tested on `W` (the detection's pre-smoothed
+/// positions), sides on the input `V`. Deterministic (sequential, in edge order); linear in the
+/// edges. Returns a sorted subset of `edges`.
+inline std::vector<std::array<Index, 2>> straight_two_sided_runs(const std::vector<std::array<Index, 2>>& edges,
+                                                                 const std::vector<Vec3>& V, const std::vector<Vec3>& W,
+                                                                 const std::vector<Face>& F, const MeshTopology& topo) {
+    using K = StraightCreaseConstants;
+    constexpr Index none = std::numeric_limits<Index>::max();
+    const std::size_t ne = edges.size();
+    std::vector<std::pair<Index, Index>> at;  // (vertex, edge id)
+    at.reserve(2 * ne);
+    for (std::size_t i = 0; i < ne; ++i) {
+        at.emplace_back(edges[i][0], static_cast<Index>(i));
+        at.emplace_back(edges[i][1], static_cast<Index>(i));
+    }
+    std::sort(at.begin(), at.end());
+    auto other = [&](Index e, Index v) { return edges[e][0] == v ? edges[e][1] : edges[e][0]; };
+    // Links: edges i and j continue each other through vertex v.
+    struct Link {
+        Index i, j, v;
+    };
+    std::vector<Link> links;
+    DisjointSets<Index> runs(ne);
+    for (std::size_t b = 0; b < at.size();) {
+        std::size_t e = b;
+        while (e < at.size() && at[e].first == at[b].first) ++e;
+        const Index v = at[b].first;
+        const std::size_t end = std::min(e, b + K::max_edges_at_vertex);
+        for (std::size_t x = b; x < end; ++x)
+            for (std::size_t y = x + 1; y < end; ++y) {
+                const Index i = at[x].second, j = at[y].second;
+                const Vec3 ui = W[other(i, v)] - W[v], uj = W[other(j, v)] - W[v];
+                const Scalar li = ui.norm(), lj = uj.norm();
+                if (li > 0 && lj > 0 && ui.dot(uj) <= -K::turn_cos * li * lj) {
+                    links.push_back({i, j, v});
+                    runs.unite(i, j);
+                }
+            }
+        b = e;
+    }
+    std::vector<std::size_t> size(ne, 0);
+    for (std::size_t i = 0; i < ne; ++i) ++size[runs.find(static_cast<Index>(i))];
+    // The edges of long runs, each oriented along its run (breadth-first over the links from
+    // the run's first edge), so that its two sides are told apart consistently along a curved run.
+    std::vector<Index> slot(ne, none);
+    std::size_t slots = 0;
+    for (std::size_t i = 0; i < ne; ++i)
+        if (size[runs.find(static_cast<Index>(i))] >= K::min_run) slot[i] = static_cast<Index>(slots++);
+    std::vector<std::vector<std::pair<Index, Index>>> adj(slots);  // (linked edge, through vertex)
+    for (const Link& l : links)
+        if (slot[l.i] != none) {
+            adj[slot[l.i]].emplace_back(l.j, l.v);
+            adj[slot[l.j]].emplace_back(l.i, l.v);
+        }
+    std::vector<signed char> to(ne, -1);  // the end of edge i along its run: edges[i][to[i]]
+    std::vector<Index> queue;
+    for (std::size_t s = 0; s < ne; ++s) {
+        if (slot[s] == none || to[s] >= 0) continue;
+        to[s] = 1;
+        queue.assign(1, static_cast<Index>(s));
+        for (std::size_t q = 0; q < queue.size(); ++q) {
+            const Index i = queue[q];
+            for (const auto& [j, v] : adj[slot[i]]) {
+                if (to[j] >= 0) continue;
+                // j continues i through v: it leaves v where i arrives at v, and the reverse.
+                const bool i_arrives = edges[i][static_cast<std::size_t>(to[i])] == v;
+                const bool j_starts_at_v = edges[j][0] == v;
+                to[j] = static_cast<signed char>(i_arrives == j_starts_at_v ? 1 : 0);
+                queue.push_back(j);
+            }
+        }
+    }
+    std::vector<Vec3> side_a(ne, Vec3::Zero()), side_b(ne, Vec3::Zero());  // by run (its root)
+    auto area = [&](Index f) {
+        const Face& t = F[f];
+        return Vec3((V[t[1]] - V[t[0]]).cross(V[t[2]] - V[t[0]]));
+    };
+    for (std::size_t i = 0; i < ne; ++i) {
+        if (slot[i] == none) continue;
+        const Index b = edges[i][static_cast<std::size_t>(to[i])], a = edges[i][1 - static_cast<std::size_t>(to[i])];
+        Index f0 = none, f1 = none;
+        std::size_t count = 0;
+        for (Index f : topo.vertex_faces(a)) {
+            const Face& t = F[f];
+            if (t[0] != b && t[1] != b && t[2] != b) continue;
+            (count == 0 ? f0 : f1) = f;
+            ++count;
+        }
+        if (count != 2) continue;  // a border or non-manifold edge: no two sides
+        const Vec3 n0 = area(f0), n1 = area(f1);
+        const Scalar l0 = n0.norm(), l1 = n1.norm();
+        if (!(l0 > 0) || !(l1 > 0)) continue;
+        const Vec3 side = (V[b] - V[a]).cross(n0 / l0 + n1 / l1), mid = (V[a] + V[b]) / 2;
+        const Index r = runs.find(static_cast<Index>(i));
+        for (Index f : {f0, f1}) {
+            const Face& t = F[f];
+            const Vec3 c = (V[t[0]] + V[t[1]] + V[t[2]]) / 3;
+            ((c - mid).dot(side) >= 0 ? side_a[r] : side_b[r]) += area(f);
+        }
+    }
+    std::vector<std::array<Index, 2>> kept;
+    for (std::size_t i = 0; i < ne; ++i) {
+        if (slot[i] == none) continue;
+        const Index r = runs.find(static_cast<Index>(i));
+        const Scalar la = side_a[r].norm(), lb = side_b[r].norm();
+        if (la > 0 && lb > 0 && side_a[r].dot(side_b[r]) <= K::side_cos * la * lb) kept.push_back(edges[i]);
+    }
+    return kept;
+}
+
 /// Feature detection, optionally on a pre-smoothed copy: `presmooth` passes of
 /// filters 3–4 on every vertex (settings `fs`) before voting, so that the voting sees
 /// the creases rather than the noise. Connectivity is shared, so the sharp edges found
-/// on the copy are the input's edges.
+/// on the copy are the input's edges. With SharpFeatureParams::straight_creases the
+/// straight-crease detection (StraightCreaseConstants) runs after it on the same neighbour
+/// sets, and the edges it keeps join the sharp edges (`straight_sharp_edges` counts those added).
 inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const std::vector<Face>& F,
                                                const MeshTopology& topo, Scalar L, const SharpFeatureParams& st,
                                                const FilterSettings& fs, std::size_t presmooth,
                                                const std::vector<unsigned char>& has_face, Progress& progress,
                                                Workspace& ws) {
-    std::vector<Vec3> W = V;
-    if (presmooth > 0) {
-        const std::vector<unsigned char> none(V.size(), 0);
-        for (std::size_t it = 0; it < presmooth; ++it)
-            face_iteration(W, F, none, has_face, L, fs, progress, 0.5 * static_cast<double>(it) / presmooth,
-                           0.5 * static_cast<double>(it + 1) / presmooth, ws, nullptr, it > 0, it > 0);
-    }
-    FaceGeometry geo;
-    compute_face_geometry(W, F, geo);
-    // The prefilter keeps the pre-smoothing's neighbour sets when it has the same cube.
-    return detect_features(W, F, topo, geo, L, st, progress, presmooth > 0 ? 0.5 : 0.0, 1.0, ws, presmooth > 0);
+    const double span = st.straight_creases ? 0.5 : 1.0;  // of the progress, per detection
+    // One detection with `settings` from progress `from`; `reuse`: every pass keeps the
+    // neighbour sets the first detection gathered on the same input (same cubes).
+    auto detect = [&](const FilterSettings& settings, bool reuse, double from, std::vector<Vec3>& W) {
+        W = V;
+        if (presmooth > 0) {
+            const std::vector<unsigned char> none(V.size(), 0);
+            for (std::size_t it = 0; it < presmooth; ++it)
+                face_iteration(W, F, none, has_face, L, settings, progress,
+                               from + span * 0.5 * static_cast<double>(it) / static_cast<double>(presmooth),
+                               from + span * 0.5 * static_cast<double>(it + 1) / static_cast<double>(presmooth), ws,
+                               nullptr, reuse || it > 0, reuse || it > 0);
+        }
+        FaceGeometry geo;
+        compute_face_geometry(W, F, geo);
+        // The prefilter keeps the pre-smoothing's neighbour sets when it has the same cube.
+        return detect_features(W, F, topo, geo, L, st, progress, from + (presmooth > 0 ? span * 0.5 : 0.0), from + span,
+                               ws, presmooth > 0 || reuse, settings.kernel);
+    };
+    std::vector<Vec3> W;
+    FeatureData fd = detect(fs, false, 0.0, W);
+    if (!st.straight_creases) return fd;
+    FilterSettings narrow = fs;
+    narrow.kernel = {StraightCreaseConstants::kernel_sigma, StraightCreaseConstants::kernel_cut};
+    const FeatureData second = detect(narrow, true, 0.5, W);
+    const std::vector<std::array<Index, 2>> kept = straight_two_sided_runs(second.sharp_edges, V, W, F, topo);
+    std::vector<std::array<Index, 2>> merged;
+    merged.reserve(fd.sharp_edges.size() + kept.size());
+    std::set_union(fd.sharp_edges.begin(), fd.sharp_edges.end(), kept.begin(), kept.end(), std::back_inserter(merged));
+    fd.straight_sharp_edges = merged.size() - fd.sharp_edges.size();
+    fd.sharp_edges = std::move(merged);
+    return fd;
 }
 
 }  // namespace kintsugi::detail::fbs
