@@ -767,6 +767,22 @@ TEST_CASE("shared data: SharpSphere0.3 and Twelve0.5Impulsive against the peers"
     }
 }
 
+/// The sharp edges of `noisy` detected with `params` and with the defaults, and their precision
+/// and recall against `reference`.
+struct DetectionPair {
+    ks::SharpFeatureResult given, defaults;
+    ss::PrecisionRecall given_pr, defaults_pr;
+};
+DetectionPair detect_both(const ks::IndexedMesh& noisy, const ks::SharpFeatureParams& params,
+                          const std::set<std::array<ks::Index, 2>>& reference) {
+    DetectionPair out{ks::detect_sharp_features(noisy, params), ks::detect_sharp_features(noisy), {}, {}};
+    REQUIRE(out.given.status == ks::Status::ok);
+    REQUIRE(out.defaults.status == ks::Status::ok);
+    out.given_pr = ss::compare_edges(out.given.features.sharp_edges, reference);
+    out.defaults_pr = ss::compare_edges(out.defaults.features.sharp_edges, reference);
+    return out;
+}
+
 TEST_CASE("impulsive noise: creases read from the faces left in their planes (twelve.obj, repository data)") {
     // The clean Twelve (63° creases) with 10 % of its vertices moved along the normals by
     // Gaussian amounts of sigma = |e| (bench_smooth's impulsive model, seed 11).
@@ -779,11 +795,7 @@ TEST_CASE("impulsive noise: creases read from the faces left in their planes (tw
     ks::SharpFeatureParams tensor_only;
     tensor_only.coplanar_creases = false;
     tensor_only.straight_creases = false;
-    const auto tensor = ks::detect_sharp_features(noisy, tensor_only);
-    const auto both = ks::detect_sharp_features(noisy);
-    REQUIRE(both.status == ks::Status::ok);
-    const auto pt = ss::compare_edges(tensor.features.sharp_edges, reference);
-    const auto pb = ss::compare_edges(both.features.sharp_edges, reference);
+    const auto [tensor, both, pt, pb] = detect_both(noisy, tensor_only, reference);
     MESSAGE("voting tensor P " << pt.precision << " R " << pt.recall << "; with the coplanar faces P " << pb.precision
                                << " R " << pb.recall << " (" << both.features.anchored_faces << " anchored faces, "
                                << both.features.coplanar_sharp_edges << " edges from their planes)");
@@ -884,11 +896,7 @@ TEST_CASE("straight creases: Twelve's 63 deg creases under Gaussian noise; a pri
     REQUIRE(reference.size() == 480);
     ks::SharpFeatureParams off;
     off.straight_creases = false;
-    const auto without = ks::detect_sharp_features(noisy, off);
-    const auto with = ks::detect_sharp_features(noisy);
-    REQUIRE(with.status == ks::Status::ok);
-    const auto p0 = ss::compare_edges(without.features.sharp_edges, reference);
-    const auto p1 = ss::compare_edges(with.features.sharp_edges, reference);
+    const auto [without, with, p0, p1] = detect_both(noisy, off, reference);
     MESSAGE("Twelve + 0.1|e|: P/R " << p0.precision << "/" << p0.recall << " without, " << p1.precision << "/"
                                     << p1.recall << " with (" << with.features.straight_sharp_edges << " added)");
     CHECK(p0.recall < 0.05);  // 0
