@@ -269,8 +269,9 @@ struct RangeKernel {
 
 /// The range weight of filter 3, g = exp(−a·Y²) for Y² ≤ cut2 and 0 beyond: exp(x) = p(x/8)⁸
 /// with p the degree-5 Taylor polynomial, relative error below 1e-6 for a·Y² ≤ 1.4 (σ 0.6,
-/// cut 1) and below 2e-4 for a·Y² ≤ 4 (σ 0.3, cut 0.85: the straight-crease detection), no
-/// branch and no table, in the same arithmetic for one value and for four (SSE2).
+/// cut 1) and below 3e-4 for a·Y² ≤ 4.02 (σ 0.3, cut 0.85: the straight-crease detection; a
+/// weight, not a test), no branch and no table, in the same arithmetic for one value and for
+/// four (SSE2).
 inline float range_weight(float Y2, float a, float cut2 = 1.f) {
     const float x = -a * Y2 * 0.125f;
     float e = 1 + x * (1 + x * (0.5f + x * (1.f / 6 + x * (1.f / 24 + x * (1.f / 120)))));
@@ -296,7 +297,8 @@ inline __m128 range_weight(__m128 Y2, float a, float cut2 = 1.f) {
 
 /// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
 /// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
-/// g(‖n_t − n_t*‖, 0.6) with g = 0 when the normals differ by more than 1 (60°) (`kernel`).
+/// g(‖n_t − n_t*‖, σ) with g = 0 when the normals differ by more than the cut (`kernel`; by
+/// default σ 0.6, cut 1: 60°).
 /// Applied `iterations` times to `normals` with the positions fixed: the cube
 /// neighbourhoods and their spatial weights a_t*·f are found once (two grid
 /// passes, CSR arrays linear in the mesh) and reused by every pass.
