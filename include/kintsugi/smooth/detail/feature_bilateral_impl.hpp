@@ -32,6 +32,7 @@
 #include <span>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <utility>
 #include <string>
 #include <vector>
@@ -806,15 +807,9 @@ inline std::vector<std::array<Index, 2>> straight_two_sided_runs(const std::vect
     for (std::size_t i = 0; i < ne; ++i) {
         if (slot[i] == none) continue;
         const Index b = edges[i][static_cast<std::size_t>(to[i])], a = edges[i][1 - static_cast<std::size_t>(to[i])];
-        Index f0 = none, f1 = none;
-        std::size_t count = 0;
-        for (Index f : topo.vertex_faces(a)) {
-            const Face& t = F[f];
-            if (t[0] != b && t[1] != b && t[2] != b) continue;
-            (count == 0 ? f0 : f1) = f;
-            ++count;
-        }
-        if (count != 2) continue;  // a border or non-manifold edge: no two sides
+        const std::optional<Index> e = topo.find_edge(a, b);
+        if (!e || topo.edge_faces(*e).size() != 2) continue;  // a border or non-manifold edge: no two sides
+        const Index f0 = topo.edge_faces(*e)[0], f1 = topo.edge_faces(*e)[1];
         const Vec3 n0 = area(f0), n1 = area(f1);
         const Scalar l0 = n0.norm(), l1 = n1.norm();
         if (!(l0 > 0) || !(l1 > 0)) continue;
