@@ -26,6 +26,9 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <random>
+#include <iostream>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <set>
@@ -596,6 +599,49 @@ TEST_CASE("the result does not depend on the thread count") {
     CHECK(fc.features.sharp_edges == fd.features.sharp_edges);
     CHECK(fc.features.edge_strength == fd.features.edge_strength);
     CHECK(c.vertices == d.vertices);
+}
+
+TEST_CASE("filter 3's AVX body gives the SSE2 body's bits, on lists of every length and both range kernels") {
+    namespace fbs = ks::detail::fbs;
+    if (!fbs::cpu_has_avx()) {
+        std::cout << ks::test::skip_marker << ": this CPU has no AVX (only the SSE2 body runs)\n";
+        return;
+    }
+    // Normals as the passes hold them (padded float4): unit, noisy, a few zero (degenerate
+    // faces) and a few opposite; lists of 0 to 41 neighbours (every remainder mod 8 and 4).
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    const std::size_t nf = 500;
+    std::vector<float, Eigen::aligned_allocator<float>> normal(4 * nf, 0.f);
+    for (std::size_t t = 0; t < nf; ++t) {
+        Eigen::Vector3f n(0.2f * u(gen), 0.2f * u(gen), 1.f);
+        if (t % 7 == 0) n = Eigen::Vector3f(u(gen), u(gen), u(gen));
+        if (t % 31 == 0) n.setZero();
+        if (t % 13 == 0) n = -n;
+        if (n.norm() > 0) n.normalize();
+        for (int k = 0; k < 3; ++k) normal[4 * t + k] = n[k];
+    }
+    std::vector<std::uint32_t> index;
+    std::vector<float> weight;
+    for (std::size_t i = 0; i < 42 * 43 / 2; ++i) {
+        index.push_back(static_cast<std::uint32_t>(gen() % nf));
+        weight.push_back(0.5f + 0.5f * u(gen));
+    }
+    std::size_t compared = 0;
+    for (const auto& [sigma, cut] : {std::pair{0.6, 1.0}, std::pair{0.3, 0.85}}) {
+        const float a = static_cast<float>(1 / (2 * sigma * sigma)), cut2 = static_cast<float>(cut * cut);
+        std::size_t first = 0;
+        for (std::size_t len = 0; len <= 41; first += len, ++len) {
+            const fbs::Neighbourhoods::Span span{index.data() + first, weight.data() + first, len};
+            for (std::size_t t = 0; t < nf; t += 37) {
+                const fbs::NormalSum s = fbs::sum_normals(normal.data(), normal.data() + 4 * t, span, a, cut2, false);
+                const fbs::NormalSum w = fbs::sum_normals(normal.data(), normal.data() + 4 * t, span, a, cut2, true);
+                CHECK(std::memcmp(&s, &w, sizeof s) == 0);
+                compared += len;
+            }
+        }
+    }
+    CHECK(compared > 10000);
 }
 
 TEST_CASE("open meshes: boundary edges are not sharp, boundary vertices move only across the surface") {

@@ -23,6 +23,13 @@
 #include <emmintrin.h>
 #include <xmmintrin.h>
 #endif
+// Filter 3's passes also have an AVX body, chosen at run time on x86 CPUs that have AVX (GCC
+// and clang: functions with their own target; the build's flags stay baseline).
+#if defined(__SSE2__) && (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__)) && \
+    !defined(KINTSUGI_NO_AVX)
+#define KINTSUGI_FBS_AVX 1
+#include <immintrin.h>
+#endif
 
 #include <algorithm>
 #include <array>
@@ -174,15 +181,22 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
             const std::size_t first = c * chunk, last = std::min(n, first + chunk);
             Neighbourhoods::Part& part = out.parts[c];
             part.offset.assign(last - first + 1, 0);
-            part.index.clear();
-            part.weight.clear();
+            // Gathered into this thread's buffers, then copied at their exact size: grown in
+            // place, a chunk's arrays kept up to twice their size in capacity (the lists were
+            // 541 MB at 590K faces, 2026-12-07).
+            thread_local std::vector<std::uint32_t> index;
+            thread_local std::vector<float> weight;
+            index.clear();
+            weight.clear();
             for (std::size_t i = first; i < last; ++i) {
                 gather(i, [&](const std::uint32_t* q, const float* w, std::size_t count) {
-                    part.index.insert(part.index.end(), q, q + count);
-                    if (w) part.weight.insert(part.weight.end(), w, w + count);
+                    index.insert(index.end(), q, q + count);
+                    if (w) weight.insert(weight.end(), w, w + count);
                 });
-                part.offset[i - first + 1] = static_cast<std::uint32_t>(part.index.size());
+                part.offset[i - first + 1] = static_cast<std::uint32_t>(index.size());
             }
+            part.index.assign(index.begin(), index.end());
+            part.weight.assign(weight.begin(), weight.end());
         }, 1);
         progress.update(from + (to - from) * static_cast<double>(blk + 1) / static_cast<double>(blocks));
     }
@@ -296,6 +310,142 @@ inline __m128 range_weight(__m128 Y2, float a, float cut2 = 1.f) {
 }
 #endif
 
+/// Filter 3's sum over the neighbours q of one face t: Σ_q w_q·g(‖n_t − n_q‖)·n_q, with w_q
+/// the stored spatial weight, g range_weight, and the normals as padded, 16-byte aligned float4
+/// (`normal`, `nt`). Four neighbours at a time where SSE2 is available, with local
+/// accumulators (through a lambda capturing them by reference they went through memory on
+/// every neighbour) and no branch on the cut-off (whether a noisy neighbour's normal is
+/// beyond it is unpredictable); eight at a time with AVX (sum_normals_avx), which adds in the
+/// same order, so both give the same bits.
+struct NormalSum {
+    float x = 0, y = 0, z = 0;
+};
+
+/// The lane sums, added (0 + 1) + (2 + 3), and the neighbours from `j` on one at a time.
+inline NormalSum finish_normal_sum(const float (&lane)[3][4], const float* normal, const float* nt,
+                                   const Neighbourhoods::Span& nbrs, std::size_t j, float a, float cut2) {
+    NormalSum s{(lane[0][0] + lane[0][1]) + (lane[0][2] + lane[0][3]),
+                (lane[1][0] + lane[1][1]) + (lane[1][2] + lane[1][3]),
+                (lane[2][0] + lane[2][1]) + (lane[2][2] + lane[2][3])};
+    for (; j < nbrs.size; ++j) {
+        const float* nq = normal + 4 * std::size_t{nbrs.index[j]};
+        const float dx = nt[0] - nq[0], dy = nt[1] - nq[1], dz = nt[2] - nq[2];
+        const float w = nbrs.weight[j] * range_weight(dx * dx + dy * dy + dz * dz, a, cut2);
+        s.x += w * nq[0];
+        s.y += w * nq[1];
+        s.z += w * nq[2];
+    }
+    return s;
+}
+
+#if defined(__SSE2__)
+/// Neighbours j..j+3 into the lane sums sx, sy, sz (t's normal broadcast in tx, ty, tz).
+inline void add_four_normals(__m128& sx, __m128& sy, __m128& sz, __m128 tx, __m128 ty, __m128 tz,
+                             const float* normal, const Neighbourhoods::Span& nbrs, std::size_t j, float a,
+                             float cut2) {
+    __m128 n0 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j]});
+    __m128 n1 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 1]});
+    __m128 n2 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 2]});
+    __m128 n3 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 3]});
+    _MM_TRANSPOSE4_PS(n0, n1, n2, n3);  // n0, n1, n2: x, y, z of the four
+    const __m128 dx = _mm_sub_ps(tx, n0), dy = _mm_sub_ps(ty, n1), dz = _mm_sub_ps(tz, n2);
+    const __m128 Y2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+    const __m128 w = _mm_mul_ps(_mm_loadu_ps(nbrs.weight + j), range_weight(Y2, a, cut2));
+    sx = _mm_add_ps(sx, _mm_mul_ps(w, n0));
+    sy = _mm_add_ps(sy, _mm_mul_ps(w, n1));
+    sz = _mm_add_ps(sz, _mm_mul_ps(w, n2));
+}
+#endif
+
+#if defined(KINTSUGI_FBS_AVX)
+/// range_weight on eight values, in the SSE2 version's arithmetic (no FMA: the target is AVX
+/// alone, so nothing is contracted and each lane gives the SSE2 version's bits).
+__attribute__((target("avx"))) inline __m256 range_weight8(__m256 Y2, float a, float cut2) {
+    const __m256 x = _mm256_mul_ps(Y2, _mm256_set1_ps(-a * 0.125f));
+    __m256 e = _mm256_add_ps(_mm256_set1_ps(1.f / 24), _mm256_mul_ps(x, _mm256_set1_ps(1.f / 120)));
+    e = _mm256_add_ps(_mm256_set1_ps(1.f / 6), _mm256_mul_ps(x, e));
+    e = _mm256_add_ps(_mm256_set1_ps(0.5f), _mm256_mul_ps(x, e));
+    e = _mm256_add_ps(_mm256_set1_ps(1.f), _mm256_mul_ps(x, e));
+    e = _mm256_add_ps(_mm256_set1_ps(1.f), _mm256_mul_ps(x, e));
+    e = _mm256_mul_ps(e, e);
+    e = _mm256_mul_ps(e, e);
+    e = _mm256_mul_ps(e, e);
+    return _mm256_and_ps(e, _mm256_cmp_ps(Y2, _mm256_set1_ps(cut2), _CMP_LE_OS));
+}
+
+/// sum_normals with eight neighbours per step: the weights of eight at once, then added to the
+/// four lane sums as two steps of four, in the order of the SSE2 loop.
+__attribute__((target("avx"))) inline NormalSum sum_normals_avx(const float* normal, const float* nt,
+                                                                const Neighbourhoods::Span& nbrs, float a,
+                                                                float cut2) {
+    const __m256 tx = _mm256_set1_ps(nt[0]), ty = _mm256_set1_ps(nt[1]), tz = _mm256_set1_ps(nt[2]);
+    __m128 sx = _mm_setzero_ps(), sy = _mm_setzero_ps(), sz = _mm_setzero_ps();
+    std::size_t j = 0;
+    for (; j + 8 <= nbrs.size; j += 8) {
+        const std::uint32_t* q = nbrs.index + j;
+        // Rows k and k + 4 in the two 128-bit halves; the in-half transpose (as _MM_TRANSPOSE4_PS).
+        const __m256 r0 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(normal + 4 * std::size_t{q[0]})),
+                                               _mm_load_ps(normal + 4 * std::size_t{q[4]}), 1);
+        const __m256 r1 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(normal + 4 * std::size_t{q[1]})),
+                                               _mm_load_ps(normal + 4 * std::size_t{q[5]}), 1);
+        const __m256 r2 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(normal + 4 * std::size_t{q[2]})),
+                                               _mm_load_ps(normal + 4 * std::size_t{q[6]}), 1);
+        const __m256 r3 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(normal + 4 * std::size_t{q[3]})),
+                                               _mm_load_ps(normal + 4 * std::size_t{q[7]}), 1);
+        const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
+        const __m256 t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
+        const __m256 nx = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0));
+        const __m256 ny = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2));
+        const __m256 nz = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0));
+        const __m256 dx = _mm256_sub_ps(tx, nx), dy = _mm256_sub_ps(ty, ny), dz = _mm256_sub_ps(tz, nz);
+        const __m256 Y2 =
+            _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
+        const __m256 w = _mm256_mul_ps(_mm256_loadu_ps(nbrs.weight + j), range_weight8(Y2, a, cut2));
+        const __m256 wx = _mm256_mul_ps(w, nx), wy = _mm256_mul_ps(w, ny), wz = _mm256_mul_ps(w, nz);
+        sx = _mm_add_ps(_mm_add_ps(sx, _mm256_castps256_ps128(wx)), _mm256_extractf128_ps(wx, 1));
+        sy = _mm_add_ps(_mm_add_ps(sy, _mm256_castps256_ps128(wy)), _mm256_extractf128_ps(wy, 1));
+        sz = _mm_add_ps(_mm_add_ps(sz, _mm256_castps256_ps128(wz)), _mm256_extractf128_ps(wz, 1));
+    }
+    const __m128 tx4 = _mm_set1_ps(nt[0]), ty4 = _mm_set1_ps(nt[1]), tz4 = _mm_set1_ps(nt[2]);
+    for (; j + 4 <= nbrs.size; j += 4) add_four_normals(sx, sy, sz, tx4, ty4, tz4, normal, nbrs, j, a, cut2);
+    alignas(16) float lane[3][4];
+    _mm_store_ps(lane[0], sx);
+    _mm_store_ps(lane[1], sy);
+    _mm_store_ps(lane[2], sz);
+    return finish_normal_sum(lane, normal, nt, nbrs, j, a, cut2);
+}
+
+/// Whether this CPU (and its OS) runs AVX: sum_normals then takes sum_normals_avx.
+inline bool cpu_has_avx() {
+    static const bool yes = [] {
+        __builtin_cpu_init();
+        return __builtin_cpu_supports("avx") != 0;
+    }();
+    return yes;
+}
+#else
+inline bool cpu_has_avx() { return false; }
+#endif
+
+/// See NormalSum; `wide`: take the AVX body (cpu_has_avx()).
+inline NormalSum sum_normals(const float* normal, const float* nt, const Neighbourhoods::Span& nbrs, float a,
+                             float cut2, [[maybe_unused]] bool wide) {
+#if defined(KINTSUGI_FBS_AVX)
+    if (wide) return sum_normals_avx(normal, nt, nbrs, a, cut2);
+#endif
+    alignas(16) float lane[3][4] = {};
+    std::size_t j = 0;
+#if defined(__SSE2__)
+    const __m128 tx = _mm_set1_ps(nt[0]), ty = _mm_set1_ps(nt[1]), tz = _mm_set1_ps(nt[2]);
+    __m128 sx = _mm_setzero_ps(), sy = _mm_setzero_ps(), sz = _mm_setzero_ps();
+    for (; j + 4 <= nbrs.size; j += 4) add_four_normals(sx, sy, sz, tx, ty, tz, normal, nbrs, j, a, cut2);
+    _mm_store_ps(lane[0], sx);
+    _mm_store_ps(lane[1], sy);
+    _mm_store_ps(lane[2], sz);
+#endif
+    return finish_normal_sum(lane, normal, nt, nbrs, j, a, cut2);
+}
+
 /// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
 /// `scale` (= σ_f = c|e|) around c_t; I = n_t*, w = a_t*, f(‖c_t − c_t*‖, scale/2),
 /// g(‖n_t − n_t*‖, σ) with g = 0 when the normals differ by more than the cut (`kernel`; by
@@ -357,54 +507,14 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
     using N4 = Eigen::Vector4f;
     std::vector<N4, Eigen::aligned_allocator<N4>> cur(nf), nxt(nf);
     parallel_for(0, nf, [&](std::size_t t) { cur[t] = N4(float(normals[t].x()), float(normals[t].y()), float(normals[t].z()), 0.f); }, 4096);
+    const bool wide = cpu_has_avx();
     for (std::size_t k = 0; k < iterations; ++k) {
         const double a0 = q2 + (to - q2) * static_cast<double>(k) / static_cast<double>(iterations);
         const double a1 = q2 + (to - q2) * static_cast<double>(k + 1) / static_cast<double>(iterations);
         blocked_for(progress, nf, a0, a1, [&](std::size_t t) {
             const N4 nt = cur[t];
-            // Plain loops with local accumulators (through a lambda capturing them by
-            // reference they went through memory on every neighbour), four neighbours
-            // at a time where SSE2 is available, and no branch on the cut-off (whether
-            // a noisy neighbour's normal is beyond it is unpredictable).
-            const float* normal = cur[0].data();
-            const Neighbourhoods::Span nbrs = nb.of(t);
-            float ax = 0, ay = 0, az = 0;
-            std::size_t j = 0;
-#if defined(__SSE2__)
-            {
-                const __m128 tx = _mm_set1_ps(nt.x()), ty = _mm_set1_ps(nt.y()), tz = _mm_set1_ps(nt.z());
-                __m128 sx = _mm_setzero_ps(), sy = _mm_setzero_ps(), sz = _mm_setzero_ps();
-                for (; j + 4 <= nbrs.size; j += 4) {
-                    __m128 n0 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j]});
-                    __m128 n1 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 1]});
-                    __m128 n2 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 2]});
-                    __m128 n3 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 3]});
-                    _MM_TRANSPOSE4_PS(n0, n1, n2, n3);  // n0, n1, n2: x, y, z of the four
-                    const __m128 dx = _mm_sub_ps(tx, n0), dy = _mm_sub_ps(ty, n1), dz = _mm_sub_ps(tz, n2);
-                    const __m128 Y2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
-                    const __m128 w = _mm_mul_ps(_mm_loadu_ps(nbrs.weight + j), range_weight(Y2, a_mg, cut2));
-                    sx = _mm_add_ps(sx, _mm_mul_ps(w, n0));
-                    sy = _mm_add_ps(sy, _mm_mul_ps(w, n1));
-                    sz = _mm_add_ps(sz, _mm_mul_ps(w, n2));
-                }
-                alignas(16) float lane[3][4];
-                _mm_store_ps(lane[0], sx);
-                _mm_store_ps(lane[1], sy);
-                _mm_store_ps(lane[2], sz);
-                ax = (lane[0][0] + lane[0][1]) + (lane[0][2] + lane[0][3]);
-                ay = (lane[1][0] + lane[1][1]) + (lane[1][2] + lane[1][3]);
-                az = (lane[2][0] + lane[2][1]) + (lane[2][2] + lane[2][3]);
-            }
-#endif
-            for (; j < nbrs.size; ++j) {
-                const float* nq = normal + 4 * std::size_t{nbrs.index[j]};
-                const float dx = nt.x() - nq[0], dy = nt.y() - nq[1], dz = nt.z() - nq[2];
-                const float w = nbrs.weight[j] * range_weight(dx * dx + dy * dy + dz * dz, a_mg, cut2);
-                ax += w * nq[0];
-                ay += w * nq[1];
-                az += w * nq[2];
-            }
-            const N4 acc(ax, ay, az, 0.f);
+            const NormalSum sum = sum_normals(cur[0].data(), nt.data(), nb.of(t), a_mg, cut2, wide);
+            const N4 acc(sum.x, sum.y, sum.z, 0.f);
             const float n = acc.norm();
             nxt[t] = n > 0 && std::isfinite(n) ? N4(acc / n) : nt;
         });
