@@ -549,11 +549,14 @@ struct FeatureData {
 inline Scalar crease_cosine(Scalar edge_threshold) { return std::cos(2 * std::atan(std::sqrt(edge_threshold))); }
 
 /// Normal voting tensor of every vertex (Sun et al. 2002), its eigen-analysis, the
-/// edge strength s_i = v2 / v1 and the sharp edges.
+/// edge strength s_i = v2 / v1 and the sharp edges. With `edges_only` the tensor is computed
+/// only at the vertices of edges that pass the other tests (the crease test), which are all
+/// the sharp edges need: the same sharp edges, the per-vertex arrays filled only there (the
+/// straight-crease detection, which uses its edges alone).
 inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector<Face>& /*F*/, const MeshTopology& topo,
                                    const FaceGeometry& geo, Scalar mean_edge, const SharpFeatureParams& st,
                                    Progress& progress, double from, double to, Workspace& ws,
-                                   bool keep_sets = false, const RangeKernel& kernel = {}) {
+                                   bool keep_sets = false, const RangeKernel& kernel = {}, bool edges_only = false) {
     const std::size_t nv = V.size();
     FeatureData out;
     out.strength.assign(nv, 0);
@@ -570,7 +573,35 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
                          nullptr, nullptr, &ws.lists, keep_sets, kernel)
         : geo.normal;
     const auto& A = geo.area;
+    // Edges that pass every test but the strength at their vertices (and, without the crease
+    // test, the direction test): a sharp edge needs one of its vertices to pass that too.
+    const auto& E = topo.edges();
+    std::vector<unsigned char> passes(E.size(), 0);
+    const Scalar crease_cos = crease_cosine(st.edge_threshold);
+    parallel_for(0, E.size(), [&](std::size_t e) {
+        const Index a = E[e][0], b = E[e][1];
+        if (a == b) return;
+        const auto ef = topo.edge_faces(e);
+        if (!st.boundary_edges_sharp && ef.size() < 2) return;
+        if (st.crease_test && ef.size() >= 2) {
+            // Every pair of the edge's faces; for a non-manifold edge with more than 64
+            // faces, the pairs with one of its first 64 (bounded cost).
+            Scalar min_dot = 1;
+            for (std::size_t i = 0; i < std::min<std::size_t>(ef.size(), 64); ++i)
+                for (std::size_t j = i + 1; j < ef.size(); ++j) min_dot = std::min(min_dot, N[ef[i]].dot(N[ef[j]]));
+            if (min_dot > crease_cos) return;
+        }
+        if (!((V[b] - V[a]).norm() > 0)) return;
+        passes[e] = 1;
+    }, 4096);
+    std::vector<unsigned char> wanted;
+    if (edges_only) {
+        wanted.assign(nv, 0);
+        for (std::size_t e = 0; e < E.size(); ++e)
+            if (passes[e]) wanted[E[e][0]] = wanted[E[e][1]] = 1;
+    }
     blocked_for(progress, nv, mid, mid + 0.9 * (to - mid), [&](std::size_t v) {
+        if (edges_only && !wanted[v]) return;
         thread_local std::vector<std::uint32_t> found;
         thread_local std::vector<Scalar> dist2;
         grid.gather(V[v], h, found, dist2, max_candidates);
@@ -603,26 +634,12 @@ inline FeatureData detect_features(const std::vector<Vec3>& V, const std::vector
 
     // Sharp edges: an edge at a candidate vertex (s >= threshold) whose direction is
     // aligned with that vertex's e3 (the crease direction).
-    const auto& E = topo.edges();
     std::vector<unsigned char> sharp(E.size(), 0);
-    const Scalar crease_cos = crease_cosine(st.edge_threshold);
     parallel_for(0, E.size(), [&](std::size_t e) {
+        if (!passes[e]) return;
         const Index a = E[e][0], b = E[e][1];
-        if (a == b) return;
-        const auto ef = topo.edge_faces(e);
-        if (!st.boundary_edges_sharp && ef.size() < 2) return;
-        if (st.crease_test && ef.size() >= 2) {
-            // Every pair of the edge's faces; for a non-manifold edge with more than 64
-            // faces, the pairs with one of its first 64 (bounded cost).
-            Scalar min_dot = 1;
-            for (std::size_t i = 0; i < std::min<std::size_t>(ef.size(), 64); ++i)
-                for (std::size_t j = i + 1; j < ef.size(); ++j) min_dot = std::min(min_dot, N[ef[i]].dot(N[ef[j]]));
-            if (min_dot > crease_cos) return;
-        }
         Vec3 d = V[b] - V[a];
-        const Scalar len = d.norm();
-        if (!(len > 0)) return;
-        d /= len;
+        d /= d.norm();
         for (Index v : {a, b})
             if (out.strength[v] >= st.edge_threshold &&
                 (st.crease_test || std::abs(d.dot(out.eigenvectors[v][2])) >= st.direction_threshold)) {
@@ -956,8 +973,9 @@ inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const
                                                const std::vector<unsigned char>& has_face, Progress& progress,
                                                Workspace& ws) {
     const double span = st.straight_creases ? 0.5 : 1.0;  // of the progress, per detection
-    // One detection with `settings` from progress `from`; `reuse`: every pass keeps the
-    // neighbour sets the first detection gathered on the same input (same cubes).
+    // One detection with `settings` from progress `from`; `reuse` (the second detection):
+    // every pass keeps the neighbour sets the first detection gathered on the same input (same
+    // cubes), and only the sharp edges are computed (detect_features' `edges_only`).
     auto detect = [&](const FilterSettings& settings, bool reuse, double from, std::vector<Vec3>& W) {
         W = V;
         if (presmooth > 0) {
@@ -972,7 +990,7 @@ inline FeatureData detect_features_presmoothed(const std::vector<Vec3>& V, const
         compute_face_geometry(W, F, geo);
         // The prefilter keeps the pre-smoothing's neighbour sets when it has the same cube.
         return detect_features(W, F, topo, geo, L, st, progress, from + (presmooth > 0 ? span * 0.5 : 0.0), from + span,
-                               ws, presmooth > 0 || reuse, settings.kernel);
+                               ws, presmooth > 0 || reuse, settings.kernel, /*edges_only=*/reuse);
     };
     std::vector<Vec3> W;
     FeatureData fd = detect(fs, false, 0.0, W);
