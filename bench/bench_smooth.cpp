@@ -82,6 +82,14 @@
 //   narrow normal kernel): 3/1 5.94 s first call, 4.63-4.66 s later (features stage 2.0 s); the
 //   mesh's 3,840 crease edges found (5 before); 3.55-3.60 s and 4.82 s earlier that day. Peak
 //   growth 189 / 767 MB (741 MB before).
+// 2026-12-07, later (the same results bit for bit: filter 3's passes with an AVX body chosen at
+//   run time, neighbour lists stored at their exact size, kept sets reweighed in the first pass,
+//   the straight-crease detection's voting only at its crease edges' vertices): back to back
+//   with the build before, three processes of three calls, load 1.4-1.6: first call 4.99 / 5.49
+//   / 5.30 s against 7.51 / 6.33 / 5.37 s, later calls 4.71-4.94 s against 4.98-5.58 s (features
+//   stage 2.05-2.09 s against 2.24-2.60 s); peak growth 161-163 / 633-635 MB (189 / 767 MB
+//   before). Twenty minutes later, in a slower phase of the VM, the same pairs: first call 5.75
+//   / 6.75 / 5.47 s against 9.31 / 7.93 / 6.79 s, later calls 5.46-7.14 s against 6.18-7.73 s.
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"

@@ -158,8 +158,10 @@
 /// (none by more than 0.05°); held out (a box, prisms of 12 and 24 sides, an L-shaped bracket,
 /// tori, spheres, bun_zipper_res2-4, the npm bunny; 143 cells): CAD −15.2°, curved +1.6° (one
 /// cell flips the risk selection: bun_zipper_res2 at 0.8|e| random, +0.88°). Cost: a second
-/// pre-smoothing and voting; the bench's 590K faces 3.55-3.60 → 4.63-4.66 s a call (its
-/// creases: 5 → 3,840 sharp edges). docs/methods/feature_bilateral.md ("Straight creases").
+/// pre-smoothing on the first one's neighbour sets, and the voting tensor at the vertices of
+/// its crease edges; the bench's 590K faces 3.55-3.60 → 4.63-4.66 s a call (its creases: 5 →
+/// 3,840 sharp edges), 4.7-4.9 s since the passes' AVX body and the exact-size lists
+/// (docs/methods/feature_bilateral.md, "Straight creases" and "Neighbourhoods and cost").
 ///
 /// ## Impulsive noise: creases from the faces left in their planes
 /// Impulsive noise moves a few vertices far and leaves the others exactly in place, so the
