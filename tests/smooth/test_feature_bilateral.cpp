@@ -604,7 +604,7 @@ TEST_CASE("the result does not depend on the thread count") {
 TEST_CASE("filter 3's AVX body gives the SSE2 body's bits, on lists of every length and both range kernels") {
     namespace fbs = ks::detail::fbs;
     if (!fbs::cpu_has_avx()) {
-        std::cout << ks::test::skip_marker << ": this CPU has no AVX (only the SSE2 body runs)\n";
+        std::cout << ks::test::skip_marker << ": no AVX body here (a CPU without AVX, or a build with FMA enabled)\n";
         return;
     }
     // Normals as the passes hold them (padded float4): unit, noisy, a few zero (degenerate

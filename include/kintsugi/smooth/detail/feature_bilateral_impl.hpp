@@ -24,9 +24,11 @@
 #include <xmmintrin.h>
 #endif
 // Filter 3's passes also have an AVX body, chosen at run time on x86 CPUs that have AVX (GCC
-// and clang: functions with their own target; the build's flags stay baseline).
+// and clang: functions with their own target; the build's flags stay baseline). Not in builds
+// with FMA enabled (-march=native and the like): GCC may then fuse the SSE2 body's products
+// and sums, and the two bodies would no longer give the same bits.
 #if defined(__SSE2__) && (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__)) && \
-    !defined(KINTSUGI_NO_AVX)
+    !defined(__FMA__) && !defined(KINTSUGI_NO_AVX)
 #define KINTSUGI_FBS_AVX 1
 #include <immintrin.h>
 #endif
@@ -415,7 +417,8 @@ __attribute__((target("avx"))) inline NormalSum sum_normals_avx(const float* nor
     return finish_normal_sum(lane, normal, nt, nbrs, j, a, cut2);
 }
 
-/// Whether this CPU (and its OS) runs AVX: sum_normals then takes sum_normals_avx.
+/// Whether this CPU (and its OS) runs AVX: sum_normals then takes sum_normals_avx (false
+/// in builds without the AVX body).
 inline bool cpu_has_avx() {
     static const bool yes = [] {
         __builtin_cpu_init();
