@@ -199,6 +199,10 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
             }
             part.index.assign(index.begin(), index.end());
             part.weight.assign(weight.begin(), weight.end());
+            // The buffers outlive the call (one pair per thread): kept up to 1M entries (4 MB
+            // each; an ordinary chunk holds about 150K), released above (dense cubes).
+            if (index.capacity() > (std::size_t{1} << 20)) index = {};
+            if (weight.capacity() > (std::size_t{1} << 20)) weight = {};
         }, 1);
         progress.update(from + (to - from) * static_cast<double>(blk + 1) / static_cast<double>(blocks));
     }
