@@ -160,7 +160,8 @@
 /// cell flips the risk selection: bun_zipper_res2 at 0.8|e| random, +0.88°). Cost: a second
 /// pre-smoothing on the first one's neighbour sets, and the voting tensor at the vertices of
 /// its crease edges; the bench's 590K faces 3.55-3.60 → 4.63-4.66 s a call (its creases: 5 →
-/// 3,840 sharp edges), 4.7-4.9 s since the passes' AVX body and the exact-size lists
+/// 3,840 sharp edges); later calls 4.7-4.9 s in the VM's faster phases since the passes' AVX
+/// body and the exact-size lists, the first call in a process 5.0-5.5 s
 /// (docs/methods/feature_bilateral.md, "Straight creases" and "Neighbourhoods and cost").
 ///
 /// ## Impulsive noise: creases from the faces left in their planes
