@@ -644,6 +644,55 @@ TEST_CASE("filter 3's AVX body gives the SSE2 body's bits, on lists of every len
     CHECK(compared > 10000);
 }
 
+TEST_CASE("filter 3's spatial weights: the AVX body gives the scalar body's bits, inside, at and beyond the table's end") {
+    namespace fbs = ks::detail::fbs;
+    if (!fbs::cpu_has_avx()) {
+        std::cout << ks::test::skip_marker << ": no AVX body here (a CPU without AVX, or a build with FMA enabled)\n";
+        return;
+    }
+    // Centroids in a cube of side 2 around the origin (squared distances 0 to 12), areas of
+    // 0 to 1 with some zero; face 1 exactly at distance 1 from face 0, the table's last knot
+    // (max2 = 1), so one weight is the value at the end rather than an interpolation.
+    std::mt19937 gen(9);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const std::size_t nf = 400;
+    fbs::FaceGeometry g;
+    for (std::size_t t = 0; t < nf; ++t) {
+        g.centroid.emplace_back(u(gen), u(gen), u(gen));
+        g.area.push_back(t % 11 == 0 ? 0.0 : 0.5 + 0.5 * u(gen));
+    }
+    g.centroid[0] = ks::Vec3(0.25, -0.5, 0.125);
+    g.centroid[1] = g.centroid[0] + ks::Vec3(1, 0, 0);
+    g.area[1] = 1;
+    g.normal.assign(nf, ks::Vec3::UnitZ());
+    fbs::CentroidArea ca;
+    fbs::pack_centroid_area(g, ca);
+    const fbs::GaussTable f(0.5, 1.0);
+    std::vector<std::uint32_t> index{1};  // the pair at the last knot first
+    for (std::size_t i = 0; i < 42 * 43 / 2; ++i) index.push_back(static_cast<std::uint32_t>(gen() % nf));
+    std::size_t compared = 0, zero = 0, inside = 0;
+    std::size_t first = 0;
+    for (std::size_t len = 0; len <= 41; first += len, ++len) {
+        for (std::size_t t : {std::size_t{0}, std::size_t{3}, std::size_t{57}, std::size_t{398}}) {
+            std::vector<float> a(len + 1, -1.f), b(len + 1, -1.f);
+            fbs::spatial_weights(ca[0].v, f, t, index.data() + first, len, a.data(), false);
+            fbs::spatial_weights(ca[0].v, f, t, index.data() + first, len, b.data(), true);
+            CHECK(std::memcmp(a.data(), b.data(), sizeof(float) * a.size()) == 0);
+            CHECK(b[len] == -1.f);  // nothing written past the list
+            for (std::size_t k = 0; k < len; ++k) (a[k] == 0 ? zero : inside) += 1;
+            compared += len;
+        }
+    }
+    CHECK(compared > 3000);
+    CHECK(zero > 100);  // beyond the table (and zero areas)
+    CHECK(inside > 100);
+    // The pair at the last knot: the table's end value (exp(-2)), not 0.
+    float w = 0;
+    fbs::spatial_weights(ca[0].v, f, 0, index.data(), 1, &w, true);
+    CHECK(w == static_cast<float>(g.area[1] * f(1.0)));
+    CHECK(w == doctest::Approx(std::exp(-2.0)).epsilon(1e-6));
+}
+
 TEST_CASE("open meshes: boundary edges are not sharp, boundary vertices move only across the surface") {
     auto open = ss::box_mesh(10);
     // Remove the top side (z = 1): its faces have all three vertices at z = 1.

@@ -23,6 +23,10 @@
 #include <kintsugi/mesh/vertex_subset.hpp>
 #include <kintsugi/spatial/morton.hpp>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -156,7 +160,9 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
                                          const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
                                          const TaubinParams& params, Progress& progress,
                                          const std::vector<Index>& draw_order) {
-    constexpr std::size_t stride = 3 + probes;  // x, y, z, then the probes
+    // x, y, z, then the probes, padded with zeros (which stay zero) to whole groups of four:
+    // the half steps add the rows four floats at a time, in registers.
+    constexpr std::size_t stride = (3 + probes + 3) / 4 * 4;
     if (!draw_order.empty() && draw_order.size() != y.size())
         throw invalid_input("kintsugi::detail::taubin_risk_curves: draw_order has " + std::to_string(draw_order.size()) +
                             " entries for " + std::to_string(y.size()) + " vertices");
@@ -230,16 +236,34 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
     auto half_step = [&](Scalar factor, std::size_t first, std::size_t last, Sums* acc) {
         const float f = static_cast<float>(factor);
         for (std::size_t k = first; k < last; ++k) {
-            std::array<float, stride> sum{};
             const std::size_t deg = offsets[k + 1] - offsets[k];
+            const float* s = &state[stride * k];
+            float* t = &next[stride * k];
+            const float w = 1.0f / static_cast<float>(deg);
+#if defined(__SSE2__)
+            // Lane by lane the scalar code's operations in its order (the same bits); as a
+            // std::array in memory, each neighbour's add waited on the previous one's store
+            // (half the sweep's time, 2026-12-07).
+            constexpr std::size_t quads = stride / 4;
+            __m128 sum[quads];
+            for (std::size_t q = 0; q < quads; ++q) sum[q] = _mm_setzero_ps();
+            for (std::size_t o = offsets[k]; o < offsets[k + 1]; ++o) {
+                const float* u = &state[stride * nbr[o]];
+                for (std::size_t q = 0; q < quads; ++q) sum[q] = _mm_add_ps(sum[q], _mm_loadu_ps(u + 4 * q));
+            }
+            const __m128 fv = _mm_set1_ps(f), wv = _mm_set1_ps(w);
+            for (std::size_t q = 0; q < quads; ++q) {
+                const __m128 sq = _mm_loadu_ps(s + 4 * q);
+                _mm_storeu_ps(t + 4 * q, _mm_add_ps(sq, _mm_mul_ps(fv, _mm_sub_ps(_mm_mul_ps(sum[q], wv), sq))));
+            }
+#else
+            std::array<float, stride> sum{};
             for (std::size_t o = offsets[k]; o < offsets[k + 1]; ++o) {
                 const float* u = &state[stride * nbr[o]];
                 for (std::size_t c = 0; c < stride; ++c) sum[c] += u[c];
             }
-            const float* s = &state[stride * k];
-            float* t = &next[stride * k];
-            const float w = 1.0f / static_cast<float>(deg);
             for (std::size_t c = 0; c < stride; ++c) t[c] = s[c] + f * (sum[c] * w - s[c]);
+#endif
             if (acc && is_counted[k]) add_sums(k, t, *acc);
         }
     };
