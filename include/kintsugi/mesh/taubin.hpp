@@ -81,7 +81,7 @@ inline std::size_t taubin_smooth(std::vector<Vec3>& positions, const MeshTopolog
             const Index v = active[i];
             next[i] = positions[v] + factor * umbrella(positions, topo, v);
         }, 1024);
-        for (std::size_t i = 0; i < active.size(); ++i) positions[active[i]] = next[i];
+        parallel_for(0, active.size(), [&](std::size_t i) { positions[active[i]] = next[i]; }, 4096);
     };
     for (std::size_t it = 0; it < params.iterations; ++it) {
         progress.update(static_cast<double>(it) / static_cast<double>(params.iterations));
@@ -160,9 +160,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
                                          const std::vector<Vec3>& normals, Scalar sigma, std::size_t max_steps,
                                          const TaubinParams& params, Progress& progress,
                                          const std::vector<Index>& draw_order) {
-    // x, y, z, then the probes, padded with zeros (which stay zero) to whole groups of four:
-    // the half steps add the rows four floats at a time, in registers.
-    constexpr std::size_t stride = (3 + probes + 3) / 4 * 4;
+    constexpr std::size_t stride = 3 + probes;  // x, y, z, then the probes
     if (!draw_order.empty() && draw_order.size() != y.size())
         throw invalid_input("kintsugi::detail::taubin_risk_curves: draw_order has " + std::to_string(draw_order.size()) +
                             " entries for " + std::to_string(y.size()) + " vertices");
@@ -244,18 +242,23 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
             // Lane by lane the scalar code's operations in its order (the same bits); as a
             // std::array in memory, each neighbour's add waited on the previous one's store
             // (half the sweep's time, 2026-12-07).
-            constexpr std::size_t quads = stride / 4;
-            __m128 sum[quads];
-            for (std::size_t q = 0; q < quads; ++q) sum[q] = _mm_setzero_ps();
+            // Groups of four from the row's start, and one more ending at its end (overlapping
+            // the last group; the lanes both compute get the same value).
+            constexpr std::size_t quads = stride / 4, tail = stride - 4;
+            __m128 sum[quads + 1];
+            for (std::size_t q = 0; q <= quads; ++q) sum[q] = _mm_setzero_ps();
             for (std::size_t o = offsets[k]; o < offsets[k + 1]; ++o) {
                 const float* u = &state[stride * nbr[o]];
                 for (std::size_t q = 0; q < quads; ++q) sum[q] = _mm_add_ps(sum[q], _mm_loadu_ps(u + 4 * q));
+                sum[quads] = _mm_add_ps(sum[quads], _mm_loadu_ps(u + tail));
             }
             const __m128 fv = _mm_set1_ps(f), wv = _mm_set1_ps(w);
-            for (std::size_t q = 0; q < quads; ++q) {
-                const __m128 sq = _mm_loadu_ps(s + 4 * q);
-                _mm_storeu_ps(t + 4 * q, _mm_add_ps(sq, _mm_mul_ps(fv, _mm_sub_ps(_mm_mul_ps(sum[q], wv), sq))));
-            }
+            auto put = [&](std::size_t at, __m128 sq) {
+                const __m128 sv = _mm_loadu_ps(s + at);
+                _mm_storeu_ps(t + at, _mm_add_ps(sv, _mm_mul_ps(fv, _mm_sub_ps(_mm_mul_ps(sq, wv), sv))));
+            };
+            put(tail, sum[quads]);
+            for (std::size_t q = 0; q < quads; ++q) put(4 * q, sum[q]);
 #else
             std::array<float, stride> sum{};
             for (std::size_t o = offsets[k]; o < offsets[k + 1]; ++o) {
