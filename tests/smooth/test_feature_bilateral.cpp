@@ -632,16 +632,72 @@ TEST_CASE("filter 3's AVX body gives the SSE2 body's bits, on lists of every len
         const float a = static_cast<float>(1 / (2 * sigma * sigma)), cut2 = static_cast<float>(cut * cut);
         std::size_t first = 0;
         for (std::size_t len = 0; len <= 41; first += len, ++len) {
-            const fbs::Neighbourhoods::Span span{index.data() + first, weight.data() + first, len};
+            // The list stored both ways: 32-bit indices, and 16-bit offsets from its smallest.
+            const std::uint32_t base = len ? *std::min_element(index.begin() + first, index.begin() + first + len) : 0;
+            std::vector<std::uint16_t> delta;
+            for (std::size_t k = 0; k < len; ++k) delta.push_back(static_cast<std::uint16_t>(index[first + k] - base));
+            const fbs::Neighbourhoods::Span wide{index.data() + first, nullptr, 0, weight.data() + first, len};
+            const fbs::Neighbourhoods::Span narrow{nullptr, delta.data(), base, weight.data() + first, len};
             for (std::size_t t = 0; t < nf; t += 37) {
-                const fbs::NormalSum s = fbs::sum_normals(normal.data(), normal.data() + 4 * t, span, a, cut2, false);
-                const fbs::NormalSum w = fbs::sum_normals(normal.data(), normal.data() + 4 * t, span, a, cut2, true);
-                CHECK(std::memcmp(&s, &w, sizeof s) == 0);
+                const float* nt = normal.data() + 4 * t;
+                const fbs::NormalSum s = fbs::sum_normals(normal.data(), nt, wide, a, cut2, false);
+                for (const auto& span : {wide, narrow})
+                    for (bool avx : {false, true}) {
+                        const fbs::NormalSum w = fbs::sum_normals(normal.data(), nt, span, a, cut2, avx);
+                        CHECK(std::memcmp(&s, &w, sizeof s) == 0);
+                    }
                 compared += len;
             }
         }
     }
     CHECK(compared > 10000);
+}
+
+TEST_CASE("neighbour lists: 16-bit offsets where a list spans at most 65535 indices, 32-bit elsewhere, the same lists") {
+    namespace fbs = ks::detail::fbs;
+    constexpr std::size_t chunk = fbs::Neighbourhoods::chunk;
+    const std::size_t n = 3 * chunk + 100;  // four chunks, the last one short
+    // Item i's list: i + 30000, i + 7 and one between; every 9th (every 4th on the second
+    // build) also i + 7 + 65536, a span of 65536; every 10th i + 7 + 65535, a span of exactly
+    // 65535; a few lists empty.
+    auto list = [&](std::size_t i, bool second) {
+        std::vector<std::uint32_t> q;
+        if (i % 1000 == 17) return q;
+        q = {std::uint32_t(i + 30000), std::uint32_t(i + 7), std::uint32_t(i + 30000 - (i % 5) * 1000)};
+        if (i % (second ? 4 : 9) == 0) q.push_back(std::uint32_t(i + 7 + 65536));
+        else if (i % 10 == 0) q.push_back(std::uint32_t(i + 7 + 65535));
+        return q;
+    };
+    ks::RunControl control;
+    ks::detail::Progress progress(control);
+    fbs::Neighbourhoods lists;
+    for (bool second : {false, true}) {  // the same lists object built again (kept capacities)
+        fbs::build_neighbourhoods(n, lists, progress, 0, 1, [&](std::size_t i, auto&& append) {
+            const std::vector<std::uint32_t> q = list(i, second);
+            std::vector<float> w;
+            for (std::uint32_t v : q) w.push_back(static_cast<float>(v) * 0.5f);
+            append(q.data(), w.data(), q.size());
+        });
+        REQUIRE(lists.parts.size() == 4);
+        std::size_t checked = 0, wide = 0, narrow = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::vector<std::uint32_t> q = list(i, second);
+            const fbs::Neighbourhoods::Span s = lists.of(i);
+            REQUIRE(s.size == q.size());
+            const bool far = !q.empty() && *std::max_element(q.begin(), q.end()) - *std::min_element(q.begin(), q.end()) > 65535;
+            CHECK((s.index != nullptr) == far);
+            (far ? wide : narrow) += 1;
+            for (std::size_t j = 0; j < q.size(); ++j) {
+                CHECK(s.at(j) == q[j]);
+                CHECK(s.with_indices([&](auto index) { return index[j]; }) == q[j]);
+                CHECK(s.weight[j] == static_cast<float>(q[j]) * 0.5f);
+                ++checked;
+            }
+        }
+        CHECK(checked > 3 * n);
+        CHECK(wide > n / (second ? 5 : 10));  // both kinds in every chunk
+        CHECK(narrow > n / 2);
+    }
 }
 
 TEST_CASE("filter 3's spatial weights: the AVX body gives the scalar body's bits, inside, at and beyond the table's end") {
@@ -674,11 +730,16 @@ TEST_CASE("filter 3's spatial weights: the AVX body gives the scalar body's bits
     std::size_t first = 0;
     for (std::size_t len = 0; len <= 41; first += len, ++len) {
         for (std::size_t t : {std::size_t{0}, std::size_t{3}, std::size_t{57}, std::size_t{398}}) {
-            std::vector<float> a(len + 1, -1.f), b(len + 1, -1.f);
-            fbs::spatial_weights(ca[0].v, f, t, index.data() + first, len, a.data(), false);
-            fbs::spatial_weights(ca[0].v, f, t, index.data() + first, len, b.data(), true);
+            std::vector<float> a(len + 1, -1.f), b(len + 1, -1.f), c(len + 1, -1.f);
+            const fbs::WideIndex wide{index.data() + first};
+            fbs::spatial_weights(ca[0].v, f, t, wide, len, a.data(), false);
+            fbs::spatial_weights(ca[0].v, f, t, wide, len, b.data(), true);
             CHECK(std::memcmp(a.data(), b.data(), sizeof(float) * a.size()) == 0);
             CHECK(b[len] == -1.f);  // nothing written past the list
+            std::vector<std::uint16_t> delta;  // 16-bit offsets from 3 below the list's indices
+            for (std::size_t k = 0; k < len; ++k) delta.push_back(static_cast<std::uint16_t>(index[first + k] + 3));
+            fbs::spatial_weights(ca[0].v, f, t, fbs::NarrowIndex{delta.data(), std::uint32_t(-3)}, len, c.data(), true);
+            CHECK(std::memcmp(a.data(), c.data(), sizeof(float) * a.size()) == 0);
             for (std::size_t k = 0; k < len; ++k) (a[k] == 0 ? zero : inside) += 1;
             compared += len;
         }
@@ -688,7 +749,7 @@ TEST_CASE("filter 3's spatial weights: the AVX body gives the scalar body's bits
     CHECK(inside > 100);
     // The pair at the last knot: the table's end value (exp(-2)), not 0.
     float w = 0;
-    fbs::spatial_weights(ca[0].v, f, 0, index.data(), 1, &w, true);
+    fbs::spatial_weights(ca[0].v, f, 0, fbs::WideIndex{index.data()}, 1, &w, true);
     CHECK(w == static_cast<float>(g.area[1] * f(1.0)));
     CHECK(w == doctest::Approx(std::exp(-2.0)).epsilon(1e-6));
 }

@@ -144,30 +144,60 @@ private:
     std::array<Scalar, n_ + 2> table_{};
 };
 
+/// Neighbour indices as stored in Neighbourhoods: 32-bit, or 16-bit offsets from a base.
+struct WideIndex {
+    const std::uint32_t* p;
+    std::uint32_t operator[](std::size_t j) const { return p[j]; }
+};
+struct NarrowIndex {
+    const std::uint16_t* p;
+    std::uint32_t base;
+    std::uint32_t operator[](std::size_t j) const { return base + p[j]; }
+};
+
 /// Neighbour lists in CSR form (indices and single-precision weights), stored in
 /// fixed chunks of `chunk` items (each chunk its own CSR, filled by one task: no copy
-/// into one array, so the peak memory is the lists themselves).
+/// into one array, so the peak memory is the lists themselves). A list spanning at most
+/// 65535 indices (items and neighbours Morton-ordered: most lists) is held as 16-bit offsets
+/// from its smallest index, so the passes stream 6 bytes per neighbour instead of 8; the
+/// others (a cube across a large Morton step) as 32-bit indices. The same indices either way.
 struct Neighbourhoods {
     static constexpr std::size_t chunk = 2048;
+    /// base[] of a list held as 32-bit indices (no index reaches it: UniformGrid holds fewer
+    /// than 2^32 − 1 points).
+    static constexpr std::uint32_t wide = 0xffffffffu;
     struct Part {
-        std::vector<std::uint32_t> offset;  // items in the chunk + 1
-        std::vector<std::uint32_t> index;
+        std::vector<std::uint32_t> offset;  // items in the chunk + 1: the lists in `weight`
+        std::vector<std::uint32_t> start;   // each list's first entry in `delta` or `index`
+        std::vector<std::uint32_t> base;    // its smallest index, or `wide`
+        std::vector<std::uint16_t> delta;   // offsets from base (lists with a base)
+        std::vector<std::uint32_t> index;   // indices (wide lists)
         std::vector<float> weight;
     };
     std::vector<Part> parts;
     std::size_t items = 0;  ///< the item count and cube half side of the last build
     Scalar scale = 0;
-    /// The neighbours of item i: indices and weights (nullptr for lists built without
-    /// weights), `size` of each.
+    /// The neighbours of item i: indices (`index`, or `delta` from `base` when `index` is
+    /// null) and weights (nullptr for lists built without weights), `size` of each.
     struct Span {
         const std::uint32_t* index;
+        const std::uint16_t* delta;
+        std::uint32_t base;
         const float* weight;
         std::size_t size;
+        [[nodiscard]] std::uint32_t at(std::size_t j) const { return index ? index[j] : base + delta[j]; }
+        /// f(WideIndex or NarrowIndex): one dispatch per list, not per neighbour.
+        template <class F>
+        decltype(auto) with_indices(F&& f) const {
+            return index ? f(WideIndex{index}) : f(NarrowIndex{delta, base});
+        }
     };
     [[nodiscard]] Span of(std::size_t i) const {
         const Part& p = parts[i / chunk];
         const std::size_t k = i % chunk;
-        return {p.index.data() + p.offset[k], p.weight.empty() ? nullptr : p.weight.data() + p.offset[k],
+        const bool narrow = p.base[k] != wide;
+        return {narrow ? nullptr : p.index.data() + p.start[k], narrow ? p.delta.data() + p.start[k] : nullptr,
+                narrow ? p.base[k] : 0, p.weight.empty() ? nullptr : p.weight.data() + p.offset[k],
                 p.offset[k + 1] - p.offset[k]};
     }
 };
@@ -202,7 +232,36 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
                 });
                 part.offset[i - first + 1] = static_cast<std::uint32_t>(index.size());
             }
-            part.index.assign(index.begin(), index.end());
+            // Each list as 16-bit offsets from its smallest index when it spans at most 65535,
+            // else as 32-bit indices; sized exactly (clear, then resize: a vector grown from
+            // empty gets the exact size).
+            const std::size_t items = last - first;
+            part.start.clear();
+            part.start.resize(items);
+            part.base.clear();
+            part.base.resize(items);
+            std::size_t narrow = 0, far = 0;
+            for (std::size_t k = 0; k < items; ++k) {
+                const auto lo = index.begin() + part.offset[k], hi = index.begin() + part.offset[k + 1];
+                const auto [mn, mx] = std::minmax_element(lo, hi);
+                const bool fits = lo == hi || *mx - *mn <= 0xffffu;
+                part.base[k] = fits ? (lo == hi ? 0 : *mn) : Neighbourhoods::wide;
+                part.start[k] = static_cast<std::uint32_t>(fits ? narrow : far);
+                (fits ? narrow : far) += static_cast<std::size_t>(hi - lo);
+            }
+            part.delta.clear();
+            part.delta.resize(narrow);
+            part.index.clear();
+            part.index.resize(far);
+            for (std::size_t k = 0; k < items; ++k) {
+                const std::uint32_t b = part.base[k], count = part.offset[k + 1] - part.offset[k];
+                const std::uint32_t* q = index.data() + part.offset[k];
+                if (b == Neighbourhoods::wide)
+                    std::copy(q, q + count, part.index.begin() + part.start[k]);
+                else
+                    for (std::uint32_t e = 0; e < count; ++e)
+                        part.delta[part.start[k] + e] = static_cast<std::uint16_t>(q[e] - b);
+            }
             part.weight.assign(weight.begin(), weight.end());
             // The buffers outlive the call (one pair per thread): kept up to 1M entries (4 MB
             // each; an ordinary chunk holds about 150K), released above (dense cubes).
@@ -332,9 +391,18 @@ struct NormalSum {
     float x = 0, y = 0, z = 0;
 };
 
+/// One neighbour list for the sums: indices (WideIndex or NarrowIndex), weights, size.
+template <class I>
+struct IndexedList {
+    I index;
+    const float* weight;
+    std::size_t size;
+};
+
 /// The lane sums, added (0 + 1) + (2 + 3), and the neighbours from `j` on one at a time.
-inline NormalSum finish_normal_sum(const float (&lane)[3][4], const float* normal, const float* nt,
-                                   const Neighbourhoods::Span& nbrs, std::size_t j, float a, float cut2) {
+template <class L>
+NormalSum finish_normal_sum(const float (&lane)[3][4], const float* normal, const float* nt, const L& nbrs,
+                            std::size_t j, float a, float cut2) {
     NormalSum s{(lane[0][0] + lane[0][1]) + (lane[0][2] + lane[0][3]),
                 (lane[1][0] + lane[1][1]) + (lane[1][2] + lane[1][3]),
                 (lane[2][0] + lane[2][1]) + (lane[2][2] + lane[2][3])};
@@ -351,9 +419,9 @@ inline NormalSum finish_normal_sum(const float (&lane)[3][4], const float* norma
 
 #if defined(__SSE2__)
 /// Neighbours j..j+3 into the lane sums sx, sy, sz (t's normal broadcast in tx, ty, tz).
-inline void add_four_normals(__m128& sx, __m128& sy, __m128& sz, __m128 tx, __m128 ty, __m128 tz,
-                             const float* normal, const Neighbourhoods::Span& nbrs, std::size_t j, float a,
-                             float cut2) {
+template <class L>
+void add_four_normals(__m128& sx, __m128& sy, __m128& sz, __m128 tx, __m128 ty, __m128 tz, const float* normal,
+                      const L& nbrs, std::size_t j, float a, float cut2) {
     __m128 n0 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j]});
     __m128 n1 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 1]});
     __m128 n2 = _mm_load_ps(normal + 4 * std::size_t{nbrs.index[j + 2]});
@@ -386,14 +454,15 @@ __attribute__((target("avx"))) inline __m256 range_weight8(__m256 Y2, float a, f
 
 /// sum_normals with eight neighbours per step: the weights of eight at once, then added to the
 /// four lane sums as two steps of four, in the order of the SSE2 loop.
-__attribute__((target("avx"))) inline NormalSum sum_normals_avx(const float* normal, const float* nt,
-                                                                const Neighbourhoods::Span& nbrs, float a,
-                                                                float cut2) {
+template <class L>
+__attribute__((target("avx"))) NormalSum sum_normals_avx(const float* normal, const float* nt, const L& nbrs,
+                                                         float a, float cut2) {
     const __m256 tx = _mm256_set1_ps(nt[0]), ty = _mm256_set1_ps(nt[1]), tz = _mm256_set1_ps(nt[2]);
     __m128 sx = _mm_setzero_ps(), sy = _mm_setzero_ps(), sz = _mm_setzero_ps();
     std::size_t j = 0;
     for (; j + 8 <= nbrs.size; j += 8) {
-        const std::uint32_t* q = nbrs.index + j;
+        const std::uint32_t q[8] = {nbrs.index[j],     nbrs.index[j + 1], nbrs.index[j + 2], nbrs.index[j + 3],
+                                    nbrs.index[j + 4], nbrs.index[j + 5], nbrs.index[j + 6], nbrs.index[j + 7]};
         // Rows k and k + 4 in the two 128-bit halves; the in-half transpose (as _MM_TRANSPOSE4_PS).
         const __m256 r0 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(normal + 4 * std::size_t{q[0]})),
                                                _mm_load_ps(normal + 4 * std::size_t{q[4]}), 1);
@@ -440,8 +509,9 @@ inline bool cpu_has_avx() { return false; }
 #endif
 
 /// See NormalSum; `wide`: take the AVX body (cpu_has_avx()).
-inline NormalSum sum_normals(const float* normal, const float* nt, const Neighbourhoods::Span& nbrs, float a,
-                             float cut2, [[maybe_unused]] bool wide) {
+template <class L>
+NormalSum sum_normals(const float* normal, const float* nt, const L& nbrs, float a, float cut2,
+                      [[maybe_unused]] bool wide) {
 #if defined(KINTSUGI_FBS_AVX)
     if (wide) return sum_normals_avx(normal, nt, nbrs, a, cut2);
 #endif
@@ -456,6 +526,14 @@ inline NormalSum sum_normals(const float* normal, const float* nt, const Neighbo
     _mm_store_ps(lane[2], sz);
 #endif
     return finish_normal_sum(lane, normal, nt, nbrs, j, a, cut2);
+}
+
+/// sum_normals over a stored list (one dispatch on its index width).
+inline NormalSum sum_normals(const float* normal, const float* nt, const Neighbourhoods::Span& nbrs, float a,
+                             float cut2, bool wide) {
+    return nbrs.with_indices([&](auto index) {
+        return sum_normals(normal, nt, IndexedList<decltype(index)>{index, nbrs.weight, nbrs.size}, a, cut2, wide);
+    });
 }
 
 /// Each face's centroid and area as one aligned 4-vector (x, y, z, a): the spatial weights
@@ -478,10 +556,12 @@ inline void pack_centroid_area(const FaceGeometry& g, CentroidArea& out) {
 /// product in double (the centroids are double) and stored as float (`ca`: pack_centroid_area).
 /// Built and kept sets get their weights here alike, so a later run keeping the sets
 /// (select_by_risk's perturbed run) computes exactly what the first did.
-inline void spatial_weights_scalar(const double* ca, const GaussTable& f, std::size_t t, const std::uint32_t* q,
-                                   std::size_t n, float* w) {
+/// (Neighbours k0..n of the list; `q`: WideIndex or NarrowIndex.)
+template <class I>
+void spatial_weights_scalar(const double* ca, const GaussTable& f, std::size_t t, I q, std::size_t k0,
+                            std::size_t n, float* w) {
     const double* c = ca + 4 * t;
-    for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t k = k0; k < n; ++k) {
         const double* p = ca + 4 * std::size_t{q[k]};
         const double dx = p[0] - c[0], dy = p[1] - c[1], dz = p[2] - c[2];
         w[k] = static_cast<float>(p[3] * f((dx * dx + dy * dy) + dz * dz));
@@ -493,8 +573,9 @@ inline void spatial_weights_scalar(const double* ca, const GaussTable& f, std::s
 /// (GaussTable's interpolation; no FMA), so both give the same bits. The kept sets are
 /// reweighed at every face iteration: in scalar code, with centroids and areas in separate
 /// arrays, this took about half as long as filter 3's passes (2026-12-07, 590K faces).
-__attribute__((target("avx"))) inline void spatial_weights_avx(const double* ca, const GaussTable& f, std::size_t t,
-                                                               const std::uint32_t* q, std::size_t n, float* w) {
+template <class I>
+__attribute__((target("avx"))) void spatial_weights_avx(const double* ca, const GaussTable& f, std::size_t t, I q,
+                                                        std::size_t n, float* w) {
     // c_t with a zero area lane: subtracting it leaves each row's area exact.
     const __m256d c = _mm256_blend_pd(_mm256_load_pd(ca + 4 * t), _mm256_setzero_pd(), 0x8);
     const Scalar* knot = f.knots();
@@ -530,17 +611,18 @@ __attribute__((target("avx"))) inline void spatial_weights_avx(const double* ca,
         const __m256d fw = _mm256_blendv_pd(edge, inside, below);
         _mm_storeu_ps(w + k, _mm256_cvtpd_ps(_mm256_mul_pd(area, fw)));
     }
-    spatial_weights_scalar(ca, f, t, q + k, n - k, w + k);
+    spatial_weights_scalar(ca, f, t, q, k, n, w);
 }
 #endif
 
 /// See spatial_weights_scalar; `wide`: take the AVX body (cpu_has_avx()).
-inline void spatial_weights(const double* ca, const GaussTable& f, std::size_t t, const std::uint32_t* q,
-                            std::size_t n, float* w, [[maybe_unused]] bool wide) {
+template <class I>
+void spatial_weights(const double* ca, const GaussTable& f, std::size_t t, I q, std::size_t n, float* w,
+                     [[maybe_unused]] bool wide) {
 #if defined(KINTSUGI_FBS_AVX)
     if (wide) return spatial_weights_avx(ca, f, t, q, n, w);
 #endif
-    spatial_weights_scalar(ca, f, t, q, n, w);
+    spatial_weights_scalar(ca, f, t, q, 0, n, w);
 }
 
 /// Filter 3) (face normals): r = t, q = t* with centroid in the cube of half side
@@ -585,7 +667,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
             for (std::size_t k = 0; k < found.size(); ++k)
                 if (reached(found[k])) found[n++] = found[k];
         }
-        spatial_weights(ca[0].v, spatial, t, found.data(), n, weight.data(), wide);
+        spatial_weights(ca[0].v, spatial, t, WideIndex{found.data()}, n, weight.data(), wide);
         append(found.data(), weight.data(), n);
     });
     nb.items = nf;
@@ -605,8 +687,10 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
             if (reweigh && k == 0) {
                 Neighbourhoods::Part& part = nb.parts[t / Neighbourhoods::chunk];
                 const std::size_t i = t % Neighbourhoods::chunk;
-                spatial_weights(ca[0].v, spatial, t, part.index.data() + part.offset[i], part.offset[i + 1] - part.offset[i],
-                                part.weight.data() + part.offset[i], wide);
+                const Neighbourhoods::Span list = nb.of(t);
+                list.with_indices([&](auto index) {
+                    spatial_weights(ca[0].v, spatial, t, index, list.size, part.weight.data() + part.offset[i], wide);
+                });
             }
             const N4 nt = cur[t];
             const NormalSum sum = sum_normals(cur[0].data(), nt.data(), nb.of(t), a_mg, cut2, wide);
@@ -906,7 +990,7 @@ inline void face_iteration(std::vector<Vec3>& V, const std::vector<Face>& F, con
             Scalar ax = 0, ay = 0, az = 0, kr = 0;
             const Neighbourhoods::Span nbrs = around.of(i);
             for (std::size_t j = 0; j < nbrs.size; ++j) {
-                const std::uint32_t q = nbrs.index[j];
+                const std::uint32_t q = nbrs.at(j);
                 const Vec3& n = nf_[q];
                 const Vec3 d = p - g.centroid[q];
                 const Scalar off = d.dot(n);
