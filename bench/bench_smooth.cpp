@@ -90,6 +90,12 @@
 //   stage 2.05-2.09 s against 2.24-2.60 s); peak growth 161-163 / 633-635 MB (189 / 767 MB
 //   before). Twenty minutes later, in a slower phase of the VM, the same pairs: first call 5.75
 //   / 6.75 / 5.47 s against 9.31 / 7.93 / 6.79 s, later calls 5.46-7.14 s against 6.18-7.73 s.
+// 2026-12-07, night (the same results bit for bit: the Taubin sweep's rows summed in registers,
+//   taubin_smooth's parallel copy, filter 3's weights from packed rows with an AVX body, 16-bit
+//   neighbour lists): back to back with the build before, three processes of three calls: 5.57 /
+//   5.27 / 5.74, 5.86 / 6.26 / 4.91, 5.10 / 5.39 / 4.88 s against 6.15 / 4.59 / 5.04, 5.57 / 4.93
+//   / 4.90, 5.26 / 4.83 / 4.91 s: not separable from the VM's variation (a slow phase); the
+//   sweep's 200 pairs alone 0.83-0.98 -> 0.66-0.85 s. Peak growth 159 / 611 MB (163 / 633 before).
 #include <benchmark/benchmark.h>
 
 #include "common.hpp"
