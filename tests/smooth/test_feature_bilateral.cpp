@@ -601,12 +601,19 @@ TEST_CASE("the result does not depend on the thread count") {
     CHECK(c.vertices == d.vertices);
 }
 
+/// Whether the AVX bodies are missing here (a CPU without AVX, or a build with FMA enabled); then
+/// reports the test as skipped.
+namespace {
+bool no_avx_body() {
+    if (ks::detail::fbs::cpu_has_avx()) return false;
+    std::cout << ks::test::skip_marker << ": no AVX body here (a CPU without AVX, or a build with FMA enabled)\n";
+    return true;
+}
+}  // namespace
+
 TEST_CASE("filter 3's AVX body gives the SSE2 body's bits, on lists of every length and both range kernels") {
     namespace fbs = ks::detail::fbs;
-    if (!fbs::cpu_has_avx()) {
-        std::cout << ks::test::skip_marker << ": no AVX body here (a CPU without AVX, or a build with FMA enabled)\n";
-        return;
-    }
+    if (no_avx_body()) return;
     // Normals as the passes hold them (padded float4): unit, noisy, a few zero (degenerate
     // faces) and a few opposite; lists of 0 to 41 neighbours (every remainder mod 8 and 4).
     std::mt19937 gen(5);
@@ -702,10 +709,7 @@ TEST_CASE("neighbour lists: 16-bit offsets where a list spans at most 65535 indi
 
 TEST_CASE("filter 3's spatial weights: the AVX body gives the scalar body's bits, inside, at and beyond the table's end") {
     namespace fbs = ks::detail::fbs;
-    if (!fbs::cpu_has_avx()) {
-        std::cout << ks::test::skip_marker << ": no AVX body here (a CPU without AVX, or a build with FMA enabled)\n";
-        return;
-    }
+    if (no_avx_body()) return;
     // Centroids in a cube of side 2 around the origin (squared distances 0 to 12), areas of
     // 0 to 1 with some zero; face 1 exactly at distance 1 from face 0, the table's last knot
     // (max2 = 1), so one weight is the value at the end rather than an interpolation.
