@@ -702,6 +702,36 @@ TEST_CASE("neighbour lists: 16-bit offsets where a list spans at most 65535 indi
             }
         }
         CHECK(checked > 3 * n);
+        // The sums and weights read the stored lists as the plain ones, in either width and
+        // whatever the CPU (the AVX bodies too where there are).
+        const std::size_t items = n + 30000 + 65536 + 8;
+        std::vector<float, Eigen::aligned_allocator<float>> normal(4 * items, 0.f);
+        fbs::FaceGeometry g;
+        for (std::size_t t = 0; t < items; ++t) {
+            const double a = 0.001 * static_cast<double>(t % 997);
+            const ks::Vec3 nt = ks::Vec3(std::sin(a), std::cos(a), 0.3).normalized();
+            for (int k = 0; k < 3; ++k) normal[4 * t + k] = static_cast<float>(nt[k]);
+            g.centroid.emplace_back(std::cos(a), std::sin(a), 0.01 * static_cast<double>(t % 13));
+            g.area.push_back(0.5 + 0.001 * static_cast<double>(t % 7));
+        }
+        g.normal.assign(items, ks::Vec3::UnitZ());
+        fbs::CentroidArea ca;
+        fbs::pack_centroid_area(g, ca);
+        const fbs::GaussTable f(0.7, 3.0);
+        for (std::size_t i = 0; i < n; i += 7) {
+            const std::vector<std::uint32_t> q = list(i, second);
+            const fbs::Neighbourhoods::Span s = lists.of(i);
+            const fbs::IndexedList<fbs::WideIndex> plain{fbs::WideIndex{q.data()}, s.weight, q.size()};
+            for (bool avx : {false, fbs::cpu_has_avx()}) {
+                const fbs::NormalSum x = fbs::sum_normals(normal.data(), normal.data() + 4 * i, plain, 2.f, 1.f, avx);
+                const fbs::NormalSum y = fbs::sum_normals(normal.data(), normal.data() + 4 * i, s, 2.f, 1.f, avx);
+                CHECK(std::memcmp(&x, &y, sizeof x) == 0);
+                std::vector<float> u(q.size()), v(q.size());
+                fbs::spatial_weights(ca.data(), f, i, fbs::WideIndex{q.data()}, q.size(), u.data(), avx);
+                s.with_indices([&](auto index) { fbs::spatial_weights(ca.data(), f, i, index, s.size, v.data(), avx); });
+                CHECK(u == v);
+            }
+        }
         CHECK(wide > n / (second ? 5 : 10));  // both kinds in every chunk
         CHECK(narrow > n / 2);
     }
@@ -736,26 +766,33 @@ TEST_CASE("filter 3's spatial weights: the AVX body gives the scalar body's bits
         for (std::size_t t : {std::size_t{0}, std::size_t{3}, std::size_t{57}, std::size_t{398}}) {
             std::vector<float> a(len + 1, -1.f), b(len + 1, -1.f), c(len + 1, -1.f);
             const fbs::WideIndex wide{index.data() + first};
-            fbs::spatial_weights(ca[0].v, f, t, wide, len, a.data(), false);
-            fbs::spatial_weights(ca[0].v, f, t, wide, len, b.data(), true);
+            fbs::spatial_weights(ca.data(), f, t, wide, len, a.data(), false);
+            fbs::spatial_weights(ca.data(), f, t, wide, len, b.data(), true);
             CHECK(std::memcmp(a.data(), b.data(), sizeof(float) * a.size()) == 0);
             CHECK(b[len] == -1.f);  // nothing written past the list
             std::vector<std::uint16_t> delta;  // 16-bit offsets from 3 below the list's indices
             for (std::size_t k = 0; k < len; ++k) delta.push_back(static_cast<std::uint16_t>(index[first + k] + 3));
-            fbs::spatial_weights(ca[0].v, f, t, fbs::NarrowIndex{delta.data(), std::uint32_t(-3)}, len, c.data(), true);
+            fbs::spatial_weights(ca.data(), f, t, fbs::NarrowIndex{delta.data(), std::uint32_t(-3)}, len, c.data(), true);
             CHECK(std::memcmp(a.data(), c.data(), sizeof(float) * a.size()) == 0);
-            for (std::size_t k = 0; k < len; ++k) (a[k] == 0 ? zero : inside) += 1;
+            for (std::size_t k = 0; k < len; ++k) {
+                (a[k] == 0 ? zero : inside) += 1;
+                // The definition: a_q·f((dx² + dy²) + dz²) in double, stored as float.
+                const ks::Vec3 d = g.centroid[index[first + k]] - g.centroid[t];
+                CHECK(a[k] == static_cast<float>(g.area[index[first + k]] * f((d.x() * d.x() + d.y() * d.y()) + d.z() * d.z())));
+            }
             compared += len;
         }
     }
     CHECK(compared > 3000);
     CHECK(zero > 100);  // beyond the table (and zero areas)
     CHECK(inside > 100);
-    // The pair at the last knot: the table's end value (exp(-2)), not 0.
-    float w = 0;
-    fbs::spatial_weights(ca[0].v, f, 0, fbs::WideIndex{index.data()}, 1, &w, true);
-    CHECK(w == static_cast<float>(g.area[1] * f(1.0)));
-    CHECK(w == doctest::Approx(std::exp(-2.0)).epsilon(1e-6));
+    // The pair at the last knot, in the first lane of a group of four: the table's end value
+    // (exp(-2)), not 0.
+    const std::uint32_t four[4] = {1, 2, 3, 4};
+    float w[4] = {};
+    fbs::spatial_weights(ca.data(), f, 0, fbs::WideIndex{four}, 4, w, true);
+    CHECK(w[0] == static_cast<float>(g.area[1] * f(1.0)));
+    CHECK(w[0] == doctest::Approx(std::exp(-2.0)).epsilon(1e-6));
 }
 
 TEST_CASE("open meshes: boundary edges are not sharp, boundary vertices move only across the surface") {

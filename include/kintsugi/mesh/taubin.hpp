@@ -246,6 +246,7 @@ TaubinRiskCurves taubin_risk_curves_with(const std::vector<Vec3>& y, const MeshT
             // (half the sweep's time, 2026-12-07).
             // Groups of four from the row's start, and one more ending at its end (overlapping
             // the last group; the lanes both compute get the same value).
+            static_assert(stride >= 4, "the last group of four must lie within the row");
             constexpr std::size_t quads = stride / 4, tail = stride - 4;
             __m128 sum[quads + 1];
             for (std::size_t q = 0; q <= quads; ++q) sum[q] = _mm_setzero_ps();

@@ -233,8 +233,10 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
                 part.offset[i - first + 1] = static_cast<std::uint32_t>(index.size());
             }
             // Each list as 16-bit offsets from its smallest index when it spans at most 65535,
-            // else as 32-bit indices; sized exactly (clear, then resize: a vector grown from
-            // empty gets the exact size).
+            // else as 32-bit indices. Sized exactly when they grow (clear, then resize: a vector
+            // grown from empty gets the exact size); a later, smaller build keeps the capacity, as
+            // the lists of each build are about the same size. An array the chunk no longer
+            // uses is released (the chunk's lists may have changed kind).
             const std::size_t items = last - first;
             part.start.clear();
             part.start.resize(items);
@@ -250,8 +252,10 @@ void build_neighbourhoods(std::size_t n, Neighbourhoods& out, Progress& progress
                 (fits ? narrow : far) += static_cast<std::size_t>(hi - lo);
             }
             part.delta.clear();
+            if (narrow == 0) part.delta.shrink_to_fit();
             part.delta.resize(narrow);
             part.index.clear();
+            if (far == 0) part.index.shrink_to_fit();
             part.index.resize(far);
             for (std::size_t k = 0; k < items; ++k) {
                 const std::uint32_t b = part.base[k], count = part.offset[k + 1] - part.offset[k];
@@ -554,15 +558,16 @@ inline void pack_centroid_area(const FaceGeometry& g, CentroidArea& out) {
 
 /// Filter 3's spatial weights of face t's neighbours q[0..n): w[k] = a_q·f(‖c_q − c_t‖²), the
 /// product in double (the centroids are double) and stored as float (`ca`: pack_centroid_area).
+/// ‖·‖² is (x² + y²) + z², the order of Eigen's vectorised squaredNorm, which computed it before.
 /// Built and kept sets get their weights here alike, so a later run keeping the sets
 /// (select_by_risk's perturbed run) computes exactly what the first did.
 /// (Neighbours k0..n of the list; `q`: WideIndex or NarrowIndex.)
 template <class I>
-void spatial_weights_scalar(const double* ca, const GaussTable& f, std::size_t t, I q, std::size_t k0,
+void spatial_weights_scalar(const CentroidAreaRow* ca, const GaussTable& f, std::size_t t, I q, std::size_t k0,
                             std::size_t n, float* w) {
-    const double* c = ca + 4 * t;
+    const double* c = ca[t].v;
     for (std::size_t k = k0; k < n; ++k) {
-        const double* p = ca + 4 * std::size_t{q[k]};
+        const double* p = ca[q[k]].v;
         const double dx = p[0] - c[0], dy = p[1] - c[1], dz = p[2] - c[2];
         w[k] = static_cast<float>(p[3] * f((dx * dx + dy * dy) + dz * dz));
     }
@@ -574,10 +579,10 @@ void spatial_weights_scalar(const double* ca, const GaussTable& f, std::size_t t
 /// reweighed at every face iteration: in scalar code, with centroids and areas in separate
 /// arrays, this took about half as long as filter 3's passes (2026-12-07, 590K faces).
 template <class I>
-__attribute__((target("avx"))) void spatial_weights_avx(const double* ca, const GaussTable& f, std::size_t t, I q,
+__attribute__((target("avx"))) void spatial_weights_avx(const CentroidAreaRow* ca, const GaussTable& f, std::size_t t, I q,
                                                         std::size_t n, float* w) {
     // c_t with a zero area lane: subtracting it leaves each row's area exact.
-    const __m256d c = _mm256_blend_pd(_mm256_load_pd(ca + 4 * t), _mm256_setzero_pd(), 0x8);
+    const __m256d c = _mm256_blend_pd(_mm256_load_pd(ca[t].v), _mm256_setzero_pd(), 0x8);
     const Scalar* knot = f.knots();
     const __m256d scale = _mm256_set1_pd(f.knot_scale());
     const __m256d top = _mm256_set1_pd(static_cast<Scalar>(GaussTable::intervals()));
@@ -585,10 +590,10 @@ __attribute__((target("avx"))) void spatial_weights_avx(const double* ca, const 
     std::size_t k = 0;
     for (; k + 4 <= n; k += 4) {
         // Rows (x − c_x, y − c_y, z − c_z, a) of the four, transposed into dx, dy, dz, a.
-        const __m256d r0 = _mm256_sub_pd(_mm256_load_pd(ca + 4 * std::size_t{q[k]}), c);
-        const __m256d r1 = _mm256_sub_pd(_mm256_load_pd(ca + 4 * std::size_t{q[k + 1]}), c);
-        const __m256d r2 = _mm256_sub_pd(_mm256_load_pd(ca + 4 * std::size_t{q[k + 2]}), c);
-        const __m256d r3 = _mm256_sub_pd(_mm256_load_pd(ca + 4 * std::size_t{q[k + 3]}), c);
+        const __m256d r0 = _mm256_sub_pd(_mm256_load_pd(ca[q[k]].v), c);
+        const __m256d r1 = _mm256_sub_pd(_mm256_load_pd(ca[q[k + 1]].v), c);
+        const __m256d r2 = _mm256_sub_pd(_mm256_load_pd(ca[q[k + 2]].v), c);
+        const __m256d r3 = _mm256_sub_pd(_mm256_load_pd(ca[q[k + 3]].v), c);
         const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);  // x0 x1 z0 z1, y0 y1 a0 a1
         const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
         const __m256d dx = _mm256_permute2f128_pd(t0, t2, 0x20), dz = _mm256_permute2f128_pd(t0, t2, 0x31);
@@ -617,7 +622,7 @@ __attribute__((target("avx"))) void spatial_weights_avx(const double* ca, const 
 
 /// See spatial_weights_scalar; `wide`: take the AVX body (cpu_has_avx()).
 template <class I>
-void spatial_weights(const double* ca, const GaussTable& f, std::size_t t, I q, std::size_t n, float* w,
+void spatial_weights(const CentroidAreaRow* ca, const GaussTable& f, std::size_t t, I q, std::size_t n, float* w,
                      [[maybe_unused]] bool wide) {
 #if defined(KINTSUGI_FBS_AVX)
     if (wide) return spatial_weights_avx(ca, f, t, q, n, w);
@@ -667,7 +672,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
             for (std::size_t k = 0; k < found.size(); ++k)
                 if (reached(found[k])) found[n++] = found[k];
         }
-        spatial_weights(ca[0].v, spatial, t, WideIndex{found.data()}, n, weight.data(), wide);
+        spatial_weights(ca.data(), spatial, t, WideIndex{found.data()}, n, weight.data(), wide);
         append(found.data(), weight.data(), n);
     });
     nb.items = nf;
@@ -689,7 +694,7 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
                 const std::size_t i = t % Neighbourhoods::chunk;
                 const Neighbourhoods::Span list = nb.of(t);
                 list.with_indices([&](auto index) {
-                    spatial_weights(ca[0].v, spatial, t, index, list.size, part.weight.data() + part.offset[i], wide);
+                    spatial_weights(ca.data(), spatial, t, index, list.size, part.weight.data() + part.offset[i], wide);
                 });
             }
             const N4 nt = cur[t];
