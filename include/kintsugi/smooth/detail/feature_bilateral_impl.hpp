@@ -689,16 +689,14 @@ inline std::vector<Vec3> filter_normals(const FaceGeometry& g, const UniformGrid
         const double a0 = q2 + (to - q2) * static_cast<double>(k) / static_cast<double>(iterations);
         const double a1 = q2 + (to - q2) * static_cast<double>(k + 1) / static_cast<double>(iterations);
         blocked_for(progress, nf, a0, a1, [&](std::size_t t) {
-            if (reweigh && k == 0) {
+            const Neighbourhoods::Span list = nb.of(t);
+            if (reweigh && k == 0) {  // the list's weights, written through its (mutable) part
                 Neighbourhoods::Part& part = nb.parts[t / Neighbourhoods::chunk];
-                const std::size_t i = t % Neighbourhoods::chunk;
-                const Neighbourhoods::Span list = nb.of(t);
-                list.with_indices([&](auto index) {
-                    spatial_weights(ca.data(), spatial, t, index, list.size, part.weight.data() + part.offset[i], wide);
-                });
+                float* w = part.weight.data() + part.offset[t % Neighbourhoods::chunk];
+                list.with_indices([&](auto index) { spatial_weights(ca.data(), spatial, t, index, list.size, w, wide); });
             }
             const N4 nt = cur[t];
-            const NormalSum sum = sum_normals(cur[0].data(), nt.data(), nb.of(t), a_mg, cut2, wide);
+            const NormalSum sum = sum_normals(cur[0].data(), nt.data(), list, a_mg, cut2, wide);
             const N4 acc(sum.x, sum.y, sum.z, 0.f);
             const float n = acc.norm();
             nxt[t] = n > 0 && std::isfinite(n) ? N4(acc / n) : nt;
