@@ -1780,6 +1780,32 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
             for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - taubin.vertices[v]).norm() == 0);
         }
     }
+    SUBCASE("the same torus at 1.2|e|: the estimate under-reads strong noise, the selection still runs; Taubin's result") {
+        // The quadric fits read 0.73-0.76|e| here; the Taubin residual implies 1.13-1.18 times
+        // that. Under the light-noise limit (1.1) the selection was skipped and the filters'
+        // 20.7-26.5° returned; risk_sigma_limit_strong accepts it.
+        const auto clean = fixtures::torus(24, 12, 1.0, 0.4);
+        const double L = ks::mean_edge_length(clean);
+        for (std::uint32_t seed : {11u, 12u}) {
+            const auto noisy = ss::add_gaussian_noise(clean, 1.2 * L, true, seed);
+            auto out = noisy;
+            const auto r = ks::smooth_feature_bilateral(out);
+            REQUIRE(r.status == ks::Status::ok);
+            auto filters = noisy;
+            (void)ks::smooth_feature_bilateral(filters, {.risk_selection = false});
+            const double e = ks::denoise_metrics(out, clean).mean_normal_angle_deg;
+            const double ef = ks::denoise_metrics(filters, clean).mean_normal_angle_deg;
+            MESSAGE("torus 24x12, 1.2|e|, seed " << seed << ": " << e << " deg, filters " << ef << "; implied sigma / estimate "
+                                                 << r.risk.sigma / r.noise.quadric_sigma << ", " << r.risk.note);
+            CHECK(r.noise.relative >= ks::detail::fbs::strong_noise_ratio);
+            CHECK(r.risk.sigma > ks::detail::fbs::risk_sigma_limit * r.noise.quadric_sigma);
+            CHECK(r.risk.sigma <= ks::detail::fbs::risk_sigma_limit_strong * r.noise.quadric_sigma);
+            CHECK(r.risk.evaluated);
+            CHECK(r.risk.taubin);
+            CHECK(e < 13.0);   // 11.4 and 9.7 measured
+            CHECK(ef > 18.0);  // 23.7 and 26.5
+        }
+    }
     SUBCASE("a 30 x 15 torus (900 faces) at 0.5-0.8|e|: the filters' risk read again with the detection on the probes; Taubin's result") {
         // Below the coarseness bound, and the frozen estimate favours the filters (they flatten
         // the bending into facets along detected creases that follow the noise).

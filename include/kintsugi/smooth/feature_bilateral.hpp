@@ -231,7 +231,8 @@
 /// neighbour sets of the first (its discrete choices; detail::fbs::RunReuse), on the input moved by
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
-/// residual implies exceeds the estimate by 10 %. Heights can favour Taubin where its normals
+/// residual implies exceeds the estimate by 10 % (30 % under strong noise, which the estimate
+/// under-reads). Heights can favour Taubin where its normals
 /// are far worse: on a prism whose vertices all lie on creases between thin facets, small
 /// residual moves turn the faces (16 sides, caps wound against the sides: 15-16° against the
 /// filters' 5.5°). Taubin's result is also kept, whatever the height risks, on a mesh too
@@ -490,7 +491,8 @@ struct FeatureBilateralResult {
     struct RiskSelection {
         /// Whether both risks were estimated: false when the option is off, when the noise
         /// was not estimated or is zero, when vertices were held (impulsive noise), and when
-        /// the Taubin residual implied a σ more than 10 % above the estimate (`note` says which).
+        /// the Taubin residual implied a σ more than 10 % above the estimate (30 % where the estimate
+        /// reads strong noise, detail::fbs::risk_sigma_limit_strong; `note` says which).
         bool evaluated = false;
         bool taubin = false;                 ///< the mesh holds Taubin's result (else the filters')
         std::size_t taubin_iterations = 0;   ///< Taubin's λ|μ pairs of least risk
@@ -1312,7 +1314,14 @@ NormalRiskDifference normal_risk_difference(const std::vector<Face>& faces, cons
 
 /// The selection is skipped when the σ its Taubin residual implies exceeds the estimate by
 /// more than this factor; the sweep covers the least-risk counts of every σ up to it.
-inline constexpr Scalar risk_sigma_limit = 1.1;
+/// risk_sigma_limit: heavy tails and a shape Taubin removes read high (CAD parts at 0.1|e|:
+/// 1.11-1.28, the creases it rounds). risk_sigma_limit_strong, where the estimate reads strong
+/// noise (relative noise ≥ strong_noise_ratio): the quadric fits under-read it (0.78-0.94 of
+/// the truth at 0.9-1.2|e|), and Gaussian noise there read up to 1.25 on 23 shapes, seeds
+/// 11-13; with 1.1 a 24 × 12 torus and CGAL's eight.off at 0.9-1.2|e| skipped the selection and
+/// kept the filters' 22-28° against Taubin's 8-15° (docs/methods/feature_bilateral.md, "Strong
+/// noise beyond the table").
+inline constexpr Scalar risk_sigma_limit = 1.1, risk_sigma_limit_strong = 1.3;
 
 /// The run of FeatureBilateralParams::risk_selection ("Risk selection" in the file comment):
 /// the filters, their Monte-Carlo SURE from a second run on a perturbed input, Taubin's sweep,
@@ -1420,7 +1429,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             Progress progress(sweep_control);
             progress.stage("risk: Taubin sweep", 0.0, 1.0);
             // The probes drawn in the input's vertex order (so.order: input index → internal).
-            const TaubinRiskCurves curves = taubin_risk_curves(y, topo, normals, risk_sigma_limit * sigma,
+            const Scalar limit = result.noise.relative >= strong_noise_ratio ? risk_sigma_limit_strong : risk_sigma_limit;
+            const TaubinRiskCurves curves = taubin_risk_curves(y, topo, normals, limit * sigma,
                                                                params.risk_taubin_max_iterations, TaubinParams{}, progress,
                                                                so.order);
             // σ from the Taubin residual itself: E res_k = σ²(m − 2 tr S_k + tr S_kᵀS_k) + bias, so
@@ -1450,7 +1460,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             result.risk.sigma = frame.to_world(s);
             result.risk.filters_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_filters) / ms));
             result.risk.taubin_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_taubin) / ms));
-            if (!(s <= risk_sigma_limit * sigma)) {
+            if (!(s <= limit * sigma)) {
                 skip("the Taubin residual implies a noise of " + std::to_string(s / sigma) +
                      " times the estimate (heavy-tailed noise, or shape Taubin removes; the estimates "
                      "assume Gaussian-like noise)");
