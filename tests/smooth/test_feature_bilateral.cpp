@@ -1789,6 +1789,25 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
             CHECK(e == et);  // Taubin's result at the chosen count
         }
     }
+    SUBCASE("a 24 x 12 torus of radii 2 and 0.7 at 0.9|e|: the face-normal estimate reads Taubin worse, but the filters' height risk reads below zero; no veto") {
+        // The veto's estimate rests on the filters' probe response, which a non-positive height
+        // risk shows to be outside the first-order regime: the veto would return the filters' 25.0°.
+        const auto clean = fixtures::torus(24, 12, 2.0, 0.7);
+        const double L = ks::mean_edge_length(clean);
+        const auto [r, out, filters, taubin, e, ef, et] = risk_cell(clean, ss::add_gaussian_noise(clean, 0.9 * L, true, 12));
+        MESSAGE("torus 24x12 (2, 0.7), 0.9|e|: " << e << " deg, filters " << ef << "; normal difference " << r.risk.normal_difference
+                                                 << " rad^2 at z " << r.risk.normal_z);
+        CHECK(r.risk.filters_rms == 0);
+        CHECK(r.noise.relative >= ks::detail::fbs::strong_noise_ratio);
+        CHECK(r.risk.normal_difference > ks::detail::fbs::normal_veto_min);  // 0.128 measured
+        CHECK(r.risk.normal_z > ks::detail::fbs::normal_veto_z);             // 3.1
+        CHECK_FALSE(r.risk.normal_veto);
+        CHECK(r.risk.coarse);
+        CHECK(r.risk.taubin);
+        CHECK(e == et);
+        CHECK(e < 10.0);   // 8.2 measured
+        CHECK(ef > 20.0);  // 25.0
+    }
     SUBCASE("a 30 x 15 torus (900 faces) at 0.5-0.8|e|: the filters' risk read again with the detection on the probes; Taubin's result") {
         // Below the coarseness bound, and the frozen estimate favours the filters (they flatten
         // the bending into facets along detected creases that follow the noise).
@@ -1880,6 +1899,8 @@ TEST_CASE("risk selection on coarse and faceted meshes: Taubin's result where th
         MESSAGE("prism 12, 0.3|e|: " << e << " deg, Taubin " << et << "; median angle " << r.risk.median_dihedral * 180 / std::numbers::pi
                                      << " deg; normal difference " << r.risk.normal_difference << " rad^2 at z " << r.risk.normal_z);
         CHECK(r.risk.coarse);  // the median angle alone would keep Taubin's result
+        CHECK(r.risk.filters_rms == 0);  // a non-positive height risk: the veto stands below strong noise
+        CHECK(r.noise.relative < ks::detail::fbs::strong_noise_ratio);
         CHECK(r.risk.normal_veto);
         CHECK_FALSE(r.risk.taubin);
         CHECK(e < 7.0);    // 5.5 measured

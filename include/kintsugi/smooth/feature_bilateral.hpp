@@ -518,7 +518,8 @@ struct FeatureBilateralResult {
         /// When the heights (risk ratio) or the coarseness chose Taubin (0 otherwise): Taubin's mean
         /// squared face-normal error minus the filters', estimated (rad² per face), the estimate
         /// over its standard error, and whether it kept the filters' result (above
-        /// detail::fbs::normal_veto_min at more than normal_veto_z standard errors: a faceted shape).
+        /// detail::fbs::normal_veto_min at more than normal_veto_z standard errors: a faceted shape;
+        /// not under strong noise where the filters' height risk reads zero or below, `filters_rms` 0).
         Scalar normal_difference = 0, normal_z = 0;
         bool normal_veto = false;
         std::string note;                    ///< why it was not evaluated, empty otherwise
@@ -1245,6 +1246,13 @@ inline constexpr Scalar coarse_dihedral = 1.25;
 /// bun_zipper_res4 and CGAL's
 /// eight.off, where Taubin is better (z at most 0.94 and 0.61). Seeds 11-13, 0.1-0.8|e|;
 /// held-out shapes in docs/methods/feature_bilateral.md ("Faceted shapes").
+/// Not applied under strong noise (relative noise ≥ strong_noise_ratio) where the filters' height
+/// risk reads zero or below: the estimate is first order in the noise and rests on the same probe
+/// as the filters' divergence, and a non-positive risk (a squared error) says that probe's
+/// response is outside the regime both assume (24 × 12 and 20 × 10 tori at 0.9-1.0|e|: vetoed at
+/// z 2.9-3.1, the filters' 25-29° against Taubin's 8-9°). Under lighter noise a veto with such a
+/// risk stands (a 12-sided prism at 0.3|e|, z 5.8: 5.5° against 13.7°; test_feature_bilateral);
+/// docs/methods/feature_bilateral.md, "Strong noise beyond the table".
 inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
 
 /// Where the filters were chosen and the median angle between Taubin's neighbouring faces
@@ -1541,7 +1549,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                             normal_risk_difference(input.faces, corner, (s * s) / (eps * eps * sigma * sigma), so.order);
                         result.risk.normal_difference = nd.mean;
                         result.risk.normal_z = nd.z;
-                        result.risk.normal_veto = nd.mean > normal_veto_min && nd.z > normal_veto_z;
+                        result.risk.normal_veto = nd.mean > normal_veto_min && nd.z > normal_veto_z &&
+                                                  (risk_filters > 0 || result.noise.relative < strong_noise_ratio);
                         result.risk.taubin = !result.risk.normal_veto;
                         result.timings.push_back({"risk: face-normal estimate",
                                                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count()});
