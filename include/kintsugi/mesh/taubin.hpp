@@ -141,8 +141,9 @@ inline std::size_t least_risk_steps(const TaubinRiskCurves& c, Scalar sigma) {
 /// σ-dependent term 2σ² tr S_k favours smaller traces, i.e. more steps, as σ grows), so the
 /// counts of every σ up to `sigma` lie within the sweep once its risk has risen well past its
 /// minimum. Pass the largest σ of interest (select_by_risk: its acceptance limit, 1.1 times the
-/// estimate, 1.3 under strong noise). The stop was at twice the count plus 30 until 2026-12-06: the same count and
-/// choice in all 54 noise-table cells, a third fewer pairs (docs/methods/feature_bilateral.md).
+/// estimate, 1.3 where the estimate reads strong noise). The stop was at twice the count plus
+/// 30 until 2026-12-06: the same count and choice in all 54 noise-table cells, a third fewer
+/// pairs (docs/methods/feature_bilateral.md).
 /// The sweep is memory-bound: the moving vertices are renumbered along a Morton curve, each
 /// one's position and probe values kept together in single precision (half the traffic; the
 /// curves move by about 1e-6 relative, the counts not at all on the bench's 295K vertices) and

@@ -231,15 +231,15 @@
 /// neighbour sets of the first (its discrete choices; detail::fbs::RunReuse), on the input moved by
 /// ±0.1σ along the result's normals. Both estimates assume Gaussian-like noise: the selection
 /// is skipped when vertices are held (impulsive noise, exact planes) and when the σ the Taubin
-/// residual implies exceeds the estimate by 10 % (30 % under strong noise, which the estimate
-/// under-reads). Heights can favour Taubin where its normals
-/// are far worse: on a prism whose vertices all lie on creases between thin facets, small
-/// residual moves turn the faces (16 sides, caps wound against the sides: 15-16° against the
-/// filters' 5.5°). Taubin's result is also kept, whatever the height risks, on a mesh too
-/// coarse for the filters: when the
-/// median angle between neighbouring faces of Taubin's result exceeds 1.25 d radians (10° at
-/// d = 0.14), filter 4 reads the surface's own bending as features and flattens it into facets
-/// (CGAL's eight.off, 634 faces, at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). Whenever
+/// residual implies exceeds the estimate by 10 % (30 % where the input's estimated relative
+/// noise, `noise.relative`, is at least 0.47: the estimate under-reads strong noise). Heights
+/// can favour Taubin where its normals are far worse: on a prism whose vertices all lie on
+/// creases between thin facets, small residual moves turn the faces (16 sides, caps wound
+/// against the sides: 15-16° against the filters' 5.5°). Taubin's result is also kept, whatever
+/// the height risks, on a mesh too coarse for the filters: when the median angle between
+/// neighbouring faces of Taubin's result exceeds 1.25 d radians (10° at d = 0.14), filter 4
+/// reads the surface's own bending as features and flattens it into facets (CGAL's eight.off,
+/// 634 faces, at 0.5-0.8|e|: 24-27° against 10-13°; `risk.coarse`). Whenever
 /// the heights or the coarseness choose Taubin, both mean squared face-normal errors are
 /// estimated too, by the same Monte-Carlo SURE on the same probe (n̂·n_y less its covariance
 /// with the input's face normals n_y; detail::fbs::normal_risk_difference), and Taubin's result
@@ -248,7 +248,8 @@
 /// wound against their sides: 60 of the 74 cells where Taubin had been chosen, 7.7-20.9° →
 /// 2.0-7.6°, one wrongly by 0.5°; consistently oriented: 4 of 53, 13-16° → 4.5-10°, and 21 of
 /// 120 cells still return Taubin's result where the filters' is better; no organic shape
-/// measured reaches the bound). Where the filters are kept on a mesh whose faces meet at a median
+/// measured reaches the bound; not applied where `noise.relative` ≥ 0.47 and the filters' height
+/// risk reads zero or below). Where the filters are kept on a mesh whose faces meet at a median
 /// angle over 0.6 d, their risk is estimated again with the sharp edges detected anew on each of
 /// up to 16 probes (the frozen edges hide the noise-driven creases the detection reads in a
 /// coarse surface's bending), and Taubin's result returned below half of it (`risk.recheck`;
@@ -491,8 +492,9 @@ struct FeatureBilateralResult {
     struct RiskSelection {
         /// Whether both risks were estimated: false when the option is off, when the noise
         /// was not estimated or is zero, when vertices were held (impulsive noise), and when
-        /// the Taubin residual implied a σ more than 10 % above the estimate (30 % where the estimate
-        /// reads strong noise, detail::fbs::risk_sigma_limit_strong; `note` says which).
+        /// the Taubin residual implied a σ more than 10 % above the estimate (30 % where
+        /// `noise.relative` ≥ detail::fbs::strong_noise_ratio, detail::fbs::risk_sigma_limit_strong;
+        /// `note` says which).
         bool evaluated = false;
         bool taubin = false;                 ///< the mesh holds Taubin's result (else the filters')
         std::size_t taubin_iterations = 0;   ///< Taubin's λ|μ pairs of least risk
@@ -519,7 +521,8 @@ struct FeatureBilateralResult {
         /// squared face-normal error minus the filters', estimated (rad² per face), the estimate
         /// over its standard error, and whether it kept the filters' result (above
         /// detail::fbs::normal_veto_min at more than normal_veto_z standard errors: a faceted shape;
-        /// not under strong noise where the filters' height risk reads zero or below, `filters_rms` 0).
+        /// not where `noise.relative` ≥ detail::fbs::strong_noise_ratio and the filters' height
+        /// risk reads zero or below, `filters_rms` 0).
         Scalar normal_difference = 0, normal_z = 0;
         bool normal_veto = false;
         std::string note;                    ///< why it was not evaluated, empty otherwise
@@ -1246,13 +1249,15 @@ inline constexpr Scalar coarse_dihedral = 1.25;
 /// bun_zipper_res4 and CGAL's
 /// eight.off, where Taubin is better (z at most 0.94 and 0.61). Seeds 11-13, 0.1-0.8|e|;
 /// held-out shapes in docs/methods/feature_bilateral.md ("Faceted shapes").
-/// Not applied under strong noise (relative noise ≥ strong_noise_ratio) where the filters' height
-/// risk reads zero or below: the estimate is first order in the noise and rests on the same probe
-/// as the filters' divergence, and a non-positive risk (a squared error) says that probe's
-/// response is outside the regime both assume (24 × 12 and 20 × 10 tori at 0.9-1.0|e|: vetoed at
-/// z 2.9-3.1, the filters' 25-29° against Taubin's 8-9°). Under lighter noise a veto with such a
-/// risk stands (a 12-sided prism at 0.3|e|, z 5.8: 5.5° against 13.7°; test_feature_bilateral);
-/// docs/methods/feature_bilateral.md, "Strong noise beyond the table".
+/// Not applied where the input's estimated relative noise (`noise.relative`, before any
+/// low-pass; not `strong_noise`) is at least strong_noise_ratio and the filters' height risk
+/// reads zero or below (NaN included): the estimate is first order in the noise and rests on the
+/// same probe as the filters' divergence, and a non-positive risk (a squared error) says that
+/// probe's response is outside the regime both assume (24 × 12 tori of radii 2 and 0.7 and
+/// 20 × 10 of 2 and 0.6 at 0.9-1.0|e|: vetoed at z 2.9-3.1, the filters' 25-29° against Taubin's
+/// 8-9°). Under lighter noise a veto with such a risk stands (a 12-sided prism at 0.3|e|, z 5.8:
+/// 5.5° against 13.7°; test_feature_bilateral). docs/methods/feature_bilateral.md, "Strong
+/// noise beyond the table".
 inline constexpr Scalar normal_veto_min = 0.03, normal_veto_z = 2.5;
 
 /// Where the filters were chosen and the median angle between Taubin's neighbouring faces
@@ -1323,12 +1328,13 @@ NormalRiskDifference normal_risk_difference(const std::vector<Face>& faces, cons
 /// The selection is skipped when the σ its Taubin residual implies exceeds the estimate by
 /// more than this factor; the sweep covers the least-risk counts of every σ up to it.
 /// risk_sigma_limit: heavy tails and a shape Taubin removes read high (CAD parts at 0.1|e|:
-/// 1.11-1.28, the creases it rounds). risk_sigma_limit_strong, where the estimate reads strong
-/// noise (relative noise ≥ strong_noise_ratio): the quadric fits under-read it (0.78-0.94 of
-/// the truth at 0.9-1.2|e|), and Gaussian noise there read up to 1.25 on 23 shapes, seeds
-/// 11-13; with 1.1 a 24 × 12 torus and CGAL's eight.off at 0.9-1.2|e| skipped the selection and
-/// kept the filters' 22-28° against Taubin's 8-15° (docs/methods/feature_bilateral.md, "Strong
-/// noise beyond the table").
+/// 1.11-1.28, the creases it rounds). risk_sigma_limit_strong, where the input's estimated
+/// relative noise (`noise.relative`, before any low-pass; not `strong_noise`) is at least
+/// strong_noise_ratio: the quadric fits under-read strong noise (0.78-0.94 of the truth at
+/// 0.9-1.2|e|), and Gaussian noise there read up to 1.25 on 23 shapes, seeds 11-13; with 1.1 a
+/// 24 × 12 torus and CGAL's eight.off at 0.9-1.2|e| skipped the selection and kept the filters'
+/// 22-28° against Taubin's 8-15°. Heavy tails above 0.47 are left to the impulse removal
+/// (risk_skip_reason). docs/methods/feature_bilateral.md, "Strong noise beyond the table".
 inline constexpr Scalar risk_sigma_limit = 1.1, risk_sigma_limit_strong = 1.3;
 
 /// The run of FeatureBilateralParams::risk_selection ("Risk selection" in the file comment):
@@ -1437,15 +1443,16 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             Progress progress(sweep_control);
             progress.stage("risk: Taubin sweep", 0.0, 1.0);
             // The probes drawn in the input's vertex order (so.order: input index → internal).
-            const Scalar limit = result.noise.relative >= strong_noise_ratio ? risk_sigma_limit_strong : risk_sigma_limit;
+            const bool strong = result.noise.relative >= strong_noise_ratio;  // the input's estimate
+            const Scalar limit = strong ? risk_sigma_limit_strong : risk_sigma_limit;
             const TaubinRiskCurves curves = taubin_risk_curves(y, topo, normals, limit * sigma,
                                                                params.risk_taubin_max_iterations, TaubinParams{}, progress,
                                                                so.order);
             // σ from the Taubin residual itself: E res_k = σ²(m − 2 tr S_k + tr S_kᵀS_k) + bias, so
             // σ² = res_k / (m − 2 tr S_k + tr S_kᵀS_k) at the count of least risk for σ, to a fixed
             // point from the quadric estimate. That estimate reads detail as noise under light
-            // noise (elephant at 0.1|e|: 1.9× the true σ) and under-reads strong noise by about
-            // 7 %; the count follows σ closely.
+            // noise (elephant at 0.1|e|: 1.9× the true σ) and under-reads strong noise (about 7 %
+            // at 0.7-0.8|e|, 6-22 % at 0.9-1.2|e|); the count follows σ closely.
             const Scalar ms = static_cast<Scalar>(std::max<std::size_t>(m, 1));
             auto implied = [&](std::size_t k) {
                 const Scalar dof = ms - 2 * curves.trace[k] + curves.trace_sq[k];
@@ -1470,8 +1477,8 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             result.risk.taubin_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_taubin) / ms));
             if (!(s <= limit * sigma)) {
                 skip("the Taubin residual implies a noise of " + std::to_string(s / sigma) +
-                     " times the estimate (heavy-tailed noise, or shape Taubin removes; the estimates "
-                     "assume Gaussian-like noise)");
+                     " times the estimate, above " + (strong ? "1.3" : "1.1") +
+                     " (heavy-tailed noise, or shape Taubin removes; the estimates assume Gaussian-like noise)");
             } else {
                 result.risk.evaluated = true;
                 // Taubin only when its risk is clearly lower: position error favours it on faceted
@@ -1550,7 +1557,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
                         result.risk.normal_difference = nd.mean;
                         result.risk.normal_z = nd.z;
                         result.risk.normal_veto = nd.mean > normal_veto_min && nd.z > normal_veto_z &&
-                                                  (risk_filters > 0 || result.noise.relative < strong_noise_ratio);
+                                                  (risk_filters > 0 || !strong);
                         result.risk.taubin = !result.risk.normal_veto;
                         result.timings.push_back({"risk: face-normal estimate",
                                                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count()});
