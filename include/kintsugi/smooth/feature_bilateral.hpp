@@ -1477,7 +1477,7 @@ FeatureBilateralResult select_by_risk(M& mesh, const FeatureBilateralParams& par
             result.risk.taubin_rms = frame.to_world(std::sqrt(std::max<Scalar>(0, risk_taubin) / ms));
             if (!(s <= limit * sigma)) {
                 skip("the Taubin residual implies a noise of " + std::to_string(s / sigma) +
-                     " times the estimate, above " + (strong ? "1.3" : "1.1") +
+                     " times the estimate, above " + std::to_string(limit) +
                      " (heavy-tailed noise, or shape Taubin removes; the estimates assume Gaussian-like noise)");
             } else {
                 result.risk.evaluated = true;
