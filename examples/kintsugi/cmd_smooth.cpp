@@ -101,7 +101,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                  "--preset paper, which gives d and the face iterations, nothing is estimated to compare with)");
     cmd.add_flag("--no-impulse-removal", o->no_impulse_removal,
                  "Do not put back the vertices impulsive noise moved far off the surface (found only when the "
-                 "vertices' heights above their neighbours are heavy-tailed; the paper preset never does)");
+                 "vertices' heights above their neighbours are heavy-tailed, or a few are over 10 median edge "
+                 "lengths off; the paper preset never does)");
     cmd.add_flag("--no-untangle", o->no_untangle,
                  "Do not unfold the faces that noise along the surface folded over (done only when the vertices' "
                  "offsets from their neighbours read as noise in random directions; the paper preset never does)");
@@ -196,6 +197,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["parameters"]["impulse_removal"] = params.impulse_removal;
         if (params.impulse_removal) {
             auto& im = j["impulses"];
+            im["spikes_put_back"] = r.spike_vertices;
             im["impulsive"] = r.impulsive_noise;
             im["put_back"] = r.impulse_vertices;
             im["dense"] = r.impulses_dense;

@@ -203,7 +203,14 @@
 /// it puts nothing back. The vertices are not held when the repaired mesh reads as Gaussian
 /// noise (impulses on top of Gaussian noise; fbs::impulse_gaussian_after_repair). The noise is
 /// estimated after it (`input_noise` is the input's: the repaired mesh's with the repair's
-/// moves added in quadrature).
+/// moves added in quadrature). Before everything else (with `impulse_removal`), a few vertices
+/// far off the surface, which that gate does not see, are put back the same way (spikes: height
+/// over 10 median edge lengths and 200 times the median height; `spike_vertices`): a spike kept
+/// as a cone tip, and spread by the Taubin steps, dragged its neighbours by a quarter of its
+/// height (the npm bunny with one vertex 50|e| off: 13.6|e|; at 10⁴|e| every scale, from the
+/// mean edge length, was the spikes'); also a vertex moved nearly along the surface, every edge
+/// at it over 10 median edge lengths and it off its neighbours' mean by over 0.8 of the shortest
+/// (docs/methods/feature_bilateral.md, "Spikes").
 /// Noise-table impulsive cells: fertility 9.5° → 3.8°, armadillo 14.2° → 6.4°, the elephant
 /// 16.9° → 6.7°, SharpSphere 7.3° → 3.2°; measured in docs/methods/feature_bilateral.md
 /// ("Impulse removal").
@@ -405,7 +412,8 @@ struct FeatureBilateralParams {
     /// `hold_unmoved`); kintsugi::remove_impulses, which changes nothing unless the vertices'
     /// heights above their neighbours are heavy-tailed ("Impulsive noise on any shape" above).
     /// Default true: with 10 % of the vertices moved by σ = |e|, fertility 9.5° → 3.8°, armadillo
-    /// 14.2° → 6.4°; false (the `paper` preset): the filters see the impulses.
+    /// 14.2° → 6.4°; false (the `paper` preset): the filters see the impulses. Also puts back
+    /// spikes (a few vertices over 10 median edge lengths off the surface) before everything else.
     bool impulse_removal = true;
     /// Unfold the faces that noise along the surface folded over, before everything else
     /// (mesh/untangle.hpp: only when the vertices' offsets from their neighbours' mean read as
@@ -456,7 +464,8 @@ struct FeatureBilateralResult {
     /// faces, and after impulse removal the vertices it took as unmoved.
     std::size_t held_vertices = 0;
     std::size_t degenerate_faces = 0;  ///< faces of zero area in the input
-    /// "topology", "coplanar creases" (features and SharpFeatureParams::coplanar_creases),
+    /// "spikes" (impulse_removal), "untangle" (untangle), "topology", "coplanar creases"
+    /// (features and SharpFeatureParams::coplanar_creases),
     /// "impulses" (impulse_removal), "noise level of the input" (when vertices were put back),
     /// "noise level" (when estimated), "low-pass" (when a step runs), "features",
     /// "edge smoothing", "face smoothing", "edge straightening" (EdgeVertexMotion::straighten
@@ -543,6 +552,9 @@ struct FeatureBilateralResult {
     /// The untangling stage (FeatureBilateralParams::untangle): its tangential-noise reading, the
     /// faces found folded over and the vertices moved (all 0 when it is off).
     UntangleReport untangle{};
+    /// Spikes put back before everything else (with `impulse_removal`): a few vertices far off the
+    /// surface (mesh/impulses.hpp, SpikeConstants), which the impulse removal's gate does not see.
+    std::size_t spike_vertices = 0;
 };
 
 namespace detail::fbs {
@@ -984,24 +996,43 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
     auto run = [&](auto& m) {
         return params.risk_selection ? fbs::select_by_risk(m, params) : fbs::smooth_run(m, params, nullptr);
     };
-    if (!params.untangle) return run(mesh);
-    // The untangled input, on a copy (the mesh is written only once the run is done).
+    if (!params.untangle && !params.impulse_removal) return run(mesh);
+    // The input with its spikes put back and its folded faces unfolded, on a copy (the mesh is
+    // written only once the run is done).
     IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
     fbs::check_mesh(fn, input);
-    const auto t0 = std::chrono::steady_clock::now();
+    auto t0 = std::chrono::steady_clock::now();
     UntangleReport untangled;
+    std::size_t spikes = 0;
+    double spike_seconds = 0;
     {
-        const detail::ScaleFrame frame = detail::scale_frame(input.vertices);
+        const detail::ScaleFrame frame = detail::scale_frame(input.vertices);  // powers of two: exact
         frame.to_local(input.vertices);
         const MeshTopology topo(input.vertices.size(), input.faces);
-        untangled = detail::untangle::run(input.vertices, input.faces, topo);
+        if (params.impulse_removal) {
+            // Before everything else: a spike inflates the mean edge length every scale rests on,
+            // and Taubin's steps (the low-pass, the risk selection) would spread it.
+            const RunControl stop_only{.stop = params.control.stop};  // the stop token; no progress events
+            detail::Progress quiet(stop_only);
+            try {
+                spikes = detail::impulses::put_back_spikes(input.vertices, input.faces, topo, quiet).size();
+            } catch (const detail::cancelled_exception&) {
+                return detail::cancelled_result<FeatureBilateralResult>();
+            }
+            const auto t1 = std::chrono::steady_clock::now();
+            spike_seconds = std::chrono::duration<double>(t1 - t0).count();
+            t0 = t1;
+        }
+        if (params.untangle) untangled = detail::untangle::run(input.vertices, input.faces, topo);
         frame.to_world(input.vertices);
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (params.control.stop.stop_requested()) return detail::cancelled_result<FeatureBilateralResult>();
     FeatureBilateralResult result = run(input);
     result.untangle = untangled;
-    result.timings.insert(result.timings.begin(), StageTiming{"untangle", seconds});
+    result.spike_vertices = spikes;
+    if (params.untangle) result.timings.insert(result.timings.begin(), StageTiming{"untangle", seconds});
+    if (params.impulse_removal) result.timings.insert(result.timings.begin(), StageTiming{"spikes", spike_seconds});
     if (result.status == Status::ok)
         for (std::size_t v = 0; v < input.vertices.size(); ++v) kintsugi::set_vertex_position(mesh, v, input.vertices[v]);
     return result;
