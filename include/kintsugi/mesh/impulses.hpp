@@ -245,6 +245,15 @@ inline Vec3 repaired_position(const std::vector<Vec3>& p, const MeshTopology& to
     const Vec3 ty = nz.cross(tx);
     const bool quadric = m >= 9;
     Vec3 o = p[v];  // where the quadric is evaluated
+    if (!at_centroid) {
+        // v's place over two edge lengths outside the points' footprint in their plane (moved
+        // along the surface as well; a border vertex lies at the footprint's edge): the quadric
+        // would be extrapolated there, so it is evaluated at the ring's mean.
+        auto planar = [&](const Vec3& d) { return (d - d.dot(nz) * nz).norm(); };
+        Scalar reach = 0;
+        for (std::size_t k = 0; k < m; ++k) reach = std::max(reach, planar(p[pts[k]] - c));
+        at_centroid = planar(p[v] - c) > reach + 2 * L;
+    }
     if (at_centroid) {
         o = Vec3::Zero();
         std::size_t k = 0;
