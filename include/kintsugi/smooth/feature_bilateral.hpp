@@ -1001,7 +1001,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
     // written only once the run is done).
     IndexedMesh input = kintsugi::to_indexed_mesh(mesh);
     fbs::check_mesh(fn, input);
-    auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = std::chrono::steady_clock::now();
     UntangleReport untangled;
     std::size_t spikes = 0;
     double spike_seconds = 0;
@@ -1012,6 +1012,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         if (params.impulse_removal) {
             // Before everything else: a spike inflates the mean edge length every scale rests on,
             // and Taubin's steps (the low-pass, the risk selection) would spread it.
+            const auto ts = std::chrono::steady_clock::now();
             const RunControl stop_only{.stop = params.control.stop};  // the stop token; no progress events
             detail::Progress quiet(stop_only);
             try {
@@ -1019,14 +1020,13 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
             } catch (const detail::cancelled_exception&) {
                 return detail::cancelled_result<FeatureBilateralResult>();
             }
-            const auto t1 = std::chrono::steady_clock::now();
-            spike_seconds = std::chrono::duration<double>(t1 - t0).count();
-            t0 = t1;
+            spike_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
         }
         if (params.untangle) untangled = detail::untangle::run(input.vertices, input.faces, topo);
         frame.to_world(input.vertices);
     }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    // The copy, the frame and the topology count with the untangling, as before the spikes stage.
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - spike_seconds;
     if (params.control.stop.stop_requested()) return detail::cancelled_result<FeatureBilateralResult>();
     FeatureBilateralResult result = run(input);
     result.untangle = untangled;
