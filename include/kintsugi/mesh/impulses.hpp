@@ -177,6 +177,21 @@ inline Scalar quantile(std::vector<Scalar> x, double q) {
 /// The least |cross|² of the triples height() takes: an area of 0.005|e|² for mean edge length L.
 inline Scalar height_min_area2(Scalar L) { return 1e-4 * L * L * L * L; }
 
+/// Every vertex's height (-1: none; `L` the edge length the least triple area is taken from),
+/// and in `defined` those that are defined, in vertex order.
+inline std::vector<Scalar> heights(const std::vector<Vec3>& p, const std::vector<Face>& faces, const MeshTopology& topo,
+                                   Scalar L, std::vector<Scalar>& defined) {
+    const std::size_t n = p.size();
+    const Scalar min_area2 = height_min_area2(L);
+    std::vector<Scalar> h(n, -1);
+    parallel_for(0, n, [&](std::size_t v) { h[v] = height(p, faces, topo, static_cast<Index>(v), min_area2); }, 1024);
+    defined.clear();
+    defined.reserve(n);
+    for (Scalar x : h)
+        if (x >= 0) defined.push_back(x);
+    return h;
+}
+
 /// Every vertex's height (-1: none), and the gate on them: with at least 20 heights defined,
 /// r.median_height and r.high_height (the 99th percentile), and r.impulsive when the latter
 /// exceeds params.gate times the former (taken at least as params.floor · L). `L` is the mean
@@ -185,14 +200,8 @@ inline Scalar height_min_area2(Scalar L) { return 1e-4 * L * L * L * L; }
 inline std::vector<Scalar> gate_heights(const std::vector<Vec3>& p, const std::vector<Face>& faces,
                                         const MeshTopology& topo, Scalar L, const ImpulseParams& params,
                                         ImpulseResult& r) {
-    const std::size_t n = p.size();
-    const Scalar min_area2 = height_min_area2(L);
-    std::vector<Scalar> h(n, -1);
-    parallel_for(0, n, [&](std::size_t v) { h[v] = height(p, faces, topo, static_cast<Index>(v), min_area2); }, 1024);
     std::vector<Scalar> defined;
-    defined.reserve(n);
-    for (Scalar x : h)
-        if (x >= 0) defined.push_back(x);
+    std::vector<Scalar> h = heights(p, faces, topo, L, defined);
     if (defined.size() < 20) return h;  // too few for a percentile
     r.median_height = quantile(defined, 0.5);
     r.high_height = quantile(defined, 0.99);
@@ -347,12 +356,8 @@ inline std::vector<Index> put_back_spikes(std::vector<Vec3>& p, const std::vecto
     const Scalar Le = median_edge_length(p, topo);
     if (!(Le > 0)) return {};
     const Scalar min_area2 = height_min_area2(Le);
-    std::vector<Scalar> h(n, -1);
-    parallel_for(0, n, [&](std::size_t v) { h[v] = height(p, faces, topo, static_cast<Index>(v), min_area2); }, 1024);
     std::vector<Scalar> defined;
-    defined.reserve(n);
-    for (Scalar x : h)
-        if (x >= 0) defined.push_back(x);
+    std::vector<Scalar> h = heights(p, faces, topo, Le, defined);
     if (defined.size() < 20) return {};
     const Scalar bound = std::max(K::edges * Le, K::ratio * std::max(quantile(std::move(defined), 0.5), defaults.floor * Le));
     progress.check();
