@@ -400,6 +400,8 @@ inline std::vector<Index> put_back_spikes(std::vector<Vec3>& p, const std::vecto
         for (std::size_t i = 0; i < flagged.size(); ++i) p[flagged[i]] = next[i];
         progress.check();
     }
+    // Those with no unflagged two-ring to be put back onto stayed where they were: not counted.
+    std::erase_if(flagged, [&](Index v) { return p[v] == input[v]; });
     std::sort(flagged.begin(), flagged.end());
     return flagged;
 }
