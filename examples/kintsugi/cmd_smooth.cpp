@@ -258,6 +258,8 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
                   : r.risk.evaluated   ? ", the filters' result kept (lower estimated error)"
                                        : ", the filters' result kept (risks not compared: " + r.risk.note + ")";
         }
+        if (r.spike_vertices > 0)
+            how += "; " + std::to_string(r.spike_vertices) + " spikes (vertices far off the surface) put back";
         if (r.untangle.moved_vertices > 0)
             how += "; " + std::to_string(r.untangle.folded_faces) + " faces folded over by noise along the surface unfolded";
         if (r.impulse_vertices > 0)

@@ -2247,7 +2247,45 @@ struct SpikyBunny {
         return d / L;
     }
 };
+/// A unit box whose top is an n × n grid and whose four sides are fans from the bottom corners
+/// to the top's border points: coarse corners beside a fine face, as CAD exports mesh them.
+ks::IndexedMesh fan_box(int n) {
+    ks::IndexedMesh m;
+    auto idx = [&](int i, int j) { return static_cast<ks::Index>(i * (n + 1) + j); };
+    for (int i = 0; i <= n; ++i)
+        for (int j = 0; j <= n; ++j) m.vertices.emplace_back(double(i) / n, double(j) / n, 1.0);
+    const auto b00 = static_cast<ks::Index>(m.vertices.size()), b10 = b00 + 1, b01 = b00 + 2, b11 = b00 + 3;
+    for (const ks::Vec3& c : {ks::Vec3(0, 0, 0), ks::Vec3(1, 0, 0), ks::Vec3(0, 1, 0), ks::Vec3(1, 1, 0)}) m.vertices.push_back(c);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            m.faces.push_back({idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)});
+            m.faces.push_back({idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)});
+        }
+    auto side = [&](auto top, ks::Index a, ks::Index b) {  // top(t), t = 0..n, runs from above a to above b
+        for (int t = 0; t < n; ++t) m.faces.push_back({t < n / 2 ? a : b, top(t + 1), top(t)});
+        m.faces.push_back({a, b, top(n / 2)});
+    };
+    side([&](int t) { return idx(t, 0); }, b00, b10);
+    side([&](int t) { return idx(n, t); }, b10, b11);
+    side([&](int t) { return idx(n - t, n); }, b11, b01);
+    side([&](int t) { return idx(0, n - t); }, b01, b00);
+    m.faces.push_back({b00, b11, b10});
+    m.faces.push_back({b00, b01, b11});
+    return m;
+}
 }  // namespace
+
+TEST_CASE("spikes: coarse corners beside a fine face are not spikes") {
+    // The bottom corners' edges are 30 median edge lengths long and they lie off their
+    // neighbours' mean; without the ring-radius test all four were taken for spikes and cut.
+    const auto box = fan_box(30);
+    auto m = box;
+    const auto r = ks::remove_impulses(m);
+    CHECK(r.spike_vertices == 0);
+    CHECK(m.vertices == box.vertices);
+    auto s = box;
+    CHECK(ks::smooth_feature_bilateral(s).spike_vertices == 0);
+}
 
 TEST_CASE_TEMPLATE("spikes (a few vertices far off the surface) are put back before the smoothing, on every mesh type", T,
                    ks::IndexedMesh, ks::EigenMeshView<Eigen::MatrixXd, Eigen::MatrixXi>, ss::SurfaceMesh) {

@@ -30,7 +30,8 @@
 ///   between planes is not taken for impulses; a few vertices on its border still can be, up to
 ///   38 of 14K moved by at most 0.8|e| in a test with a half-cylinder on a plate), and each
 ///   flagged vertex is put at the
-///   height, at its place, of a quadric z = q(x, y) fitted to the unflagged vertices within
+///   height, at its place (at its ring's mean when it lies over two edge lengths outside the
+///   points' footprint), of a quadric z = q(x, y) fitted to the unflagged vertices within
 ///   two rings (in the frame of their least-variance direction, which a flagged neighbour
 ///   cannot tilt; iteratively reweighted with Tukey's biweight, so that moved vertices under
 ///   the threshold lose their weight; a plane with fewer than 9 points). Then the heights of
@@ -39,7 +40,8 @@
 /// - **Spikes** (detail::impulses::SpikeConstants), before the gate: a few vertices far off the
 ///   surface, whose height exceeds 10 median edge lengths and 200 times the median height (or,
 ///   moved nearly along the surface, whose every edge exceeds 10 median edge lengths and which
-///   lie off their neighbours' mean by over 0.8 of the shortest), are put back onto the robust
+///   lie off their neighbours' mean by over 0.8 of the shortest), and which stand out from their
+///   ring (height or shortest edge over 3 times its radius), are put back onto the robust
 ///   quadric at their neighbours' mean (`spike_vertices`), however few they are; the gate and the
 ///   rest then read the repaired mesh. A needle tip meshed with edges over 10 median edge lengths
 ///   would read as one.
@@ -66,7 +68,8 @@
 /// ("Impulse removal").
 ///
 /// Cost: linear in the mesh (a pass over the edges and a median per pass, a fit of at most
-/// 256 points per flagged vertex), parallel; the result does not depend on the thread count.
+/// 256 points per flagged vertex; the spikes: a median of the edge lengths and up to three
+/// passes over the vertices' rings), parallel; the result does not depend on the thread count.
 
 #include <kintsugi/adapters/indexed_mesh.hpp>
 #include <kintsugi/core/concepts.hpp>
@@ -125,7 +128,8 @@ struct ImpulseResult {
     bool impulsive = false;
     /// Vertices put back (0 when the gate did not pass or `dense`).
     std::size_t moved_vertices = 0;
-    /// More than max_fraction of the vertices were flagged: nothing was put back.
+    /// More than max_fraction of the vertices were flagged: nothing was put back by the gated stage
+    /// (spikes may have been: `spike_vertices`).
     bool dense = false;
     /// Vertices taken as unmoved (see ImpulseParams::keep; 0 unless vertices were put back).
     std::size_t unmoved_vertices = 0;
@@ -317,12 +321,14 @@ inline Vec3 repaired_position(const std::vector<Vec3>& p, const MeshTopology& to
 /// Spikes: a few vertices far off the surface (a scanner's stray samples, a file's corrupted
 /// rows), too few for the gate's 99th percentile to see them. A vertex is one when its height
 /// exceeds both `edges` times the median edge length and `ratio` times the median height (taken
-/// at least as ImpulseParams::floor median edge lengths), or by `off_centre` below. Without the repair a feature-aware
-/// filter keeps such a vertex as a cone tip and a linear one spreads it: the npm bunny with one
+/// at least as ImpulseParams::floor median edge lengths), or by `off_centre` below, and stands
+/// out from its ring (`local`). Without the repair a feature-aware filter keeps such a vertex as a
+/// cone tip and a linear one spreads it: the npm bunny with one
 /// vertex moved 50|e| came out with the spike in place and its neighbours dragged 13.6|e| (at
 /// 10⁴|e|: 1,598|e|). The bounds sit twice above the largest heights measured without spikes,
-/// 4.96|e| and 104.5 times the median (the RealData angel clean and with noise; 32 shapes clean,
-/// at 0.1-1.2|e| along the normals and 0.5-1.0|e| in random directions; docs/methods/
+/// 4.96|e| and 104.5 times the median (the RealData angel clean and with noise; 61 meshes of
+/// ../shared/data, and 32 shapes at 0.1-1.2|e| along the normals and 0.3-1.0|e| in random
+/// directions; docs/methods/
 /// feature_bilateral.md, "Spikes"). Lengths are medians, as the mean edge length of a mesh
 /// with spikes is theirs (20 spikes of 10⁴|e| on 1,839 vertices: 218 times the mesh's).
 struct SpikeConstants {
@@ -332,7 +338,32 @@ struct SpikeConstants {
     /// shortest edge from its neighbours' mean (a spike at distance D from a ring of radius r:
     /// about D / (D − r) ≥ 1; a vertex amid its ring 0, on a border about 0.5).
     static constexpr Scalar off_centre = 0.8;
+    /// Either way the vertex must stand out from its own ring too: its height (or its shortest
+    /// edge) over `local` times the ring's radius (ring_radius, without the other candidates: two
+    /// spikes side by side). A spike D off a ring of radius r reads D / r ≥ 10; a coarse part's corner beside
+    /// finer ones reads about 1 or less (a 12-triangle cube's corner: height 0.58 s against a radius
+    /// of about 0.8 s; a box corner fanned to a finely meshed face), and is left alone.
+    static constexpr Scalar local = 3;
 };
+
+/// The radius of v's ring: the largest distance of a neighbour from the neighbours' mean, over
+/// the neighbours `skip` does not exclude (at most 64, evenly strided: a hub costs a bounded
+/// amount); 0 without any.
+template <class Skip>
+Scalar ring_radius(const std::vector<Vec3>& p, const MeshTopology& topo, Index v, const Skip& skip) {
+    const auto nb = topo.vertex_neighbors(v);
+    const std::size_t step = std::max<std::size_t>(1, nb.size() / 64);
+    Vec3 mean = Vec3::Zero();
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < nb.size(); i += step)
+        if (!skip(nb[i])) mean += p[nb[i]], ++k;
+    if (k == 0) return 0;
+    mean /= static_cast<Scalar>(k);
+    Scalar r = 0;
+    for (std::size_t i = 0; i < nb.size(); i += step)
+        if (!skip(nb[i])) r = std::max(r, (p[nb[i]] - mean).norm());
+    return r;
+}
 
 /// The median edge length over the edges of `topo` (0 without edges).
 inline Scalar median_edge_length(const std::vector<Vec3>& p, const MeshTopology& topo) {
@@ -343,9 +374,9 @@ inline Scalar median_edge_length(const std::vector<Vec3>& p, const MeshTopology&
 }
 
 /// Puts the spikes (SpikeConstants) back where a robust quadric through their unflagged two-ring
-/// puts them (repaired_position), in up to ImpulseParams::passes passes (a spike next to another
+/// puts them (repaired_position), in up to the default ImpulseParams::passes (3; a spike next to another
 /// shows once that one is back); returns the vertices moved, sorted. Nothing moves when more than
-/// ImpulseParams::max_fraction of the vertices would (not a few stray vertices: a surface this
+/// the default ImpulseParams::max_fraction (0.2) of the vertices would (not a few stray vertices: a surface this
 /// stage cannot read) or with fewer than 20 heights defined. Linear in the mesh, parallel,
 /// independent of the thread count.
 inline std::vector<Index> put_back_spikes(std::vector<Vec3>& p, const std::vector<Face>& faces, const MeshTopology& topo,
@@ -369,26 +400,38 @@ inline std::vector<Index> put_back_spikes(std::vector<Vec3>& p, const std::vecto
             parallel_for(0, n, [&](std::size_t v) {
                 if (!is_flagged[v]) h[v] = height(p, faces, topo, static_cast<Index>(v), min_area2);
             }, 1024);
-        // Far off its neighbours in every direction: every edge long, the vertex off their mean.
-        auto stray = [&](std::size_t v) {
+        // Candidates: far above the planes of their neighbours, or far off them in every direction
+        // (every edge long, the vertex off their mean).
+        std::vector<unsigned char> candidate(n, 0);
+        std::vector<Scalar> shortest(n, 0);
+        parallel_for(0, n, [&](std::size_t v) {
+            if (is_flagged[v]) return;
             const auto nb = topo.vertex_neighbors(static_cast<Index>(v));
-            if (nb.size() < 3) return false;
-            Scalar shortest = std::numeric_limits<Scalar>::infinity();
+            if (nb.size() < 3) return;
+            Scalar s_min = std::numeric_limits<Scalar>::infinity();
             Vec3 mean = Vec3::Zero();
             for (Index u : nb) {
-                shortest = std::min(shortest, (p[u] - p[v]).norm());
+                s_min = std::min(s_min, (p[u] - p[v]).norm());
                 mean += p[u];
             }
             mean /= static_cast<Scalar>(nb.size());
-            return shortest > K::edges * Le && (p[v] - mean).norm() > K::off_centre * shortest;
-        };
+            shortest[v] = s_min;
+            const bool stray = s_min > K::edges * Le && (p[v] - mean).norm() > K::off_centre * s_min;
+            candidate[v] = h[v] > bound ? 1 : stray ? 2 : 0;
+        }, 1024);
+        // Flagged when it stands out from its ring too, the ring taken without other candidates
+        // (two spikes side by side) and flagged vertices.
         std::size_t added = 0;
-        for (std::size_t v = 0; v < n; ++v)
-            if (!is_flagged[v] && (h[v] > bound || stray(v))) {
-                is_flagged[v] = 1;
-                flagged.push_back(static_cast<Index>(v));
-                ++added;
-            }
+        for (std::size_t v = 0; v < n; ++v) {
+            if (!candidate[v]) continue;
+            const Scalar r = ring_radius(p, topo, static_cast<Index>(v),
+                                         [&](Index u) { return candidate[u] != 0 || is_flagged[u] != 0; });
+            const Scalar x = candidate[v] == 1 ? h[v] : shortest[v];
+            if (!(x > K::local * r)) continue;
+            is_flagged[v] = 1;
+            flagged.push_back(static_cast<Index>(v));
+            ++added;
+        }
         if (added == 0) break;
         if (static_cast<Scalar>(flagged.size()) > defaults.max_fraction * static_cast<Scalar>(n)) {
             if (!input.empty()) p = std::move(input);

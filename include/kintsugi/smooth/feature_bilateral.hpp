@@ -209,8 +209,9 @@
 /// as a cone tip, and spread by the Taubin steps, dragged its neighbours by a quarter of its
 /// height (the npm bunny with one vertex 50|e| off: 13.6|e|; at 10⁴|e| every scale, from the
 /// mean edge length, was the spikes'); also a vertex moved nearly along the surface, every edge
-/// at it over 10 median edge lengths and it off its neighbours' mean by over 0.8 of the shortest
-/// (docs/methods/feature_bilateral.md, "Spikes").
+/// at it over 10 median edge lengths and it off its neighbours' mean by over 0.8 of the shortest;
+/// either way standing out from its ring by over 3 times the ring's radius, so that a coarse
+/// corner beside fine faces is not one (docs/methods/feature_bilateral.md, "Spikes").
 /// Noise-table impulsive cells: fertility 9.5° → 3.8°, armadillo 14.2° → 6.4°, the elephant
 /// 16.9° → 6.7°, SharpSphere 7.3° → 3.2°; measured in docs/methods/feature_bilateral.md
 /// ("Impulse removal").
@@ -415,7 +416,7 @@ struct FeatureBilateralParams {
     /// 14.2° → 6.4°; false (the `paper` preset): the filters see the impulses. Also puts back
     /// spikes (a few vertices over 10 median edge lengths off the surface) before everything else.
     bool impulse_removal = true;
-    /// Unfold the faces that noise along the surface folded over, before everything else
+    /// Unfold the faces that noise along the surface folded over, before everything else but the spikes
     /// (mesh/untangle.hpp: only when the vertices' offsets from their neighbours' mean read as
     /// tangential noise, and only the folded faces' corners move, within the tangent plane).
     /// Default true: in random directions at 0.5|e| the shark 10.5° → 2.3°, fertility 14.8° → 6.0°,
@@ -1025,7 +1026,7 @@ FeatureBilateralResult smooth_feature_bilateral(M& mesh, const FeatureBilateralP
         if (params.untangle) untangled = detail::untangle::run(input.vertices, input.faces, topo);
         frame.to_world(input.vertices);
     }
-    // The copy, the frame and the topology count with the untangling, as before the spikes stage.
+    // The copy, the frame and the topology count with the untangling (reported when it runs).
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - spike_seconds;
     if (params.control.stop.stop_requested()) return detail::cancelled_result<FeatureBilateralResult>();
     FeatureBilateralResult result = run(input);
