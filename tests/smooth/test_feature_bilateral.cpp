@@ -2228,7 +2228,9 @@ struct SpikyBunny {
     ks::IndexedMesh clean, spiky;
     std::vector<std::size_t> spikes;
     double L = 0;
-    SpikyBunny(std::size_t count, double edges) {
+    /// along_surface: moved along a tangent of the clean surface instead (a low height: found by
+    /// the edge-length test, SpikeConstants::off_centre).
+    SpikyBunny(std::size_t count, double edges, bool along_surface = false) {
         clean = ks::read_mesh(std::filesystem::path(KINTSUGI_TEST_DATA_DIR) / "bunny.off");
         clean.normals.clear();
         L = ks::mean_edge_length(clean);
@@ -2237,7 +2239,8 @@ struct SpikyBunny {
         for (std::size_t k = 0; k < count; ++k) {
             const std::size_t v = 100 + 367 * k;
             spikes.push_back(v);
-            spiky.vertices[v] += edges * L * n[v];
+            const ks::Vec3 t = n[v].cross(std::abs(n[v].x()) < 0.9 ? ks::Vec3(1, 0, 0) : ks::Vec3(0, 1, 0)).normalized();
+            spiky.vertices[v] += edges * L * (along_surface ? t : n[v]);
         }
     }
     /// The largest distance of a vertex of `m` from its clean place, in mean edge lengths.
@@ -2330,6 +2333,23 @@ TEST_CASE("spikes: remove_impulses puts back only them; the paper preset and a s
             else
                 REQUIRE(m.vertices[v] == b.spiky.vertices[v]);
         }
+    }
+    SUBCASE("moved along the surface (a low height): found by their long edges") {
+        const SpikyBunny t(5, 50.0, true);
+        auto m = t.spiky;
+        const auto r = ks::remove_impulses(m);
+        CHECK(r.spike_vertices == 5);
+        for (std::size_t v : t.spikes) CHECK((m.vertices[v] - t.clean.vertices[v]).norm() < 0.5 * t.L);
+        ks::IndexedMesh one = t.spiky, two = t.spiky;
+        {
+            ks::ThreadLimit limit(1);
+            (void)ks::remove_impulses(one);
+        }
+        {
+            ks::ThreadLimit limit(2);
+            (void)ks::remove_impulses(two);
+        }
+        CHECK(one.vertices == two.vertices);
     }
     SUBCASE("the paper preset (no impulse removal): the spikes stay") {
         auto m = b.spiky;
