@@ -2153,6 +2153,14 @@ struct ImpulsiveBunny {
         return std::sqrt(s / static_cast<double>(moved)) / L;
     }
 };
+
+/// remove_impulses on a copy of `in`, with at most `threads` worker threads.
+ks::IndexedMesh impulses_removed(const ks::IndexedMesh& in, int threads) {
+    ks::IndexedMesh m = in;
+    ks::ThreadLimit limit(threads);
+    (void)ks::remove_impulses(m);
+    return m;
+}
 }  // namespace
 
 TEST_CASE_TEMPLATE("remove_impulses puts the moved vertices back, the same on every mesh type and thread count", T,
@@ -2178,15 +2186,7 @@ TEST_CASE_TEMPLATE("remove_impulses puts the moved vertices back, the same on ev
     ks::IndexedMesh reference = b.noisy;
     (void)ks::remove_impulses(reference);
     for (std::size_t v = 0; v < out.vertices.size(); ++v) REQUIRE((out.vertices[v] - reference.vertices[v]).norm() < 1e-12);
-    ks::IndexedMesh one = b.noisy, two = b.noisy;
-    {
-        ks::ThreadLimit limit(1);
-        (void)ks::remove_impulses(one);
-    }
-    {
-        ks::ThreadLimit limit(2);
-        (void)ks::remove_impulses(two);
-    }
+    const ks::IndexedMesh one = impulses_removed(b.noisy, 1), two = impulses_removed(b.noisy, 2);
     CHECK(one.vertices == two.vertices);
     CHECK(one.vertices == reference.vertices);
 }
@@ -2340,16 +2340,7 @@ TEST_CASE("spikes: remove_impulses puts back only them; the paper preset and a s
         const auto r = ks::remove_impulses(m);
         CHECK(r.spike_vertices == 5);
         for (std::size_t v : t.spikes) CHECK((m.vertices[v] - t.clean.vertices[v]).norm() < 0.5 * t.L);
-        ks::IndexedMesh one = t.spiky, two = t.spiky;
-        {
-            ks::ThreadLimit limit(1);
-            (void)ks::remove_impulses(one);
-        }
-        {
-            ks::ThreadLimit limit(2);
-            (void)ks::remove_impulses(two);
-        }
-        CHECK(one.vertices == two.vertices);
+        CHECK(impulses_removed(t.spiky, 1).vertices == impulses_removed(t.spiky, 2).vertices);
     }
     SUBCASE("the paper preset (no impulse removal): the spikes stay") {
         auto m = b.spiky;
