@@ -598,8 +598,8 @@ BENCHMARK(BM_CGALPoisson)->Args({2000000, 0})->Unit(benchmark::kSecond)->UseManu
 BENCHMARK(BM_PUGraphcut)->Args({10000000, 10})->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1);
 
 int main(int argc, char** argv) {
-    // glibc's allocator on huge pages, as the kintsugi CLI runs (KINTSUGI_NO_HUGE_PAGES=1:
+    // glibc's allocator keeping freed memory, as the kintsugi CLI runs (KINTSUGI_DEFAULT_MALLOC=1:
     // the library's default, as a program that does not call it gets).
-    ks::use_huge_page_malloc(argv);
+    ks::use_kept_heap_malloc(argv);
     return ks::bench::run(argc, argv, [](const ks::bench::RatioReporter&) { print_summary(); });
 }

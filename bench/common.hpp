@@ -30,11 +30,10 @@
 
 namespace kintsugi::bench {
 
-/// Which allocator this run uses, for a summary (benchmarks that call use_huge_page_malloc).
+/// Which allocator this run uses, for a summary (benchmarks that call use_kept_heap_malloc).
 inline const char* allocator_description() {
-    return !huge_page_malloc_on()   ? "default (KINTSUGI_NO_HUGE_PAGES set, or not Linux/glibc)"
-           : detail::heap_kept()    ? "glibc on huge pages, freed memory kept (use_huge_page_malloc)"
-                                    : "glibc on huge pages (GLIBC_TUNABLES set by the caller)";
+    return kept_heap_malloc_on() ? "glibc keeping freed memory (use_kept_heap_malloc)"
+                                 : "default (KINTSUGI_DEFAULT_MALLOC set, or not Linux/glibc)";
 }
 
 /// Peak resident set size of this process so far (VmHWM), in MB; 0 when unknown.

@@ -239,8 +239,9 @@ void Context::add_timing(const std::string& stage, double seconds) { json_["timi
 }  // namespace kcli
 
 int main(int argc, char** argv) {
-    // Large inputs: glibc's allocator on huge pages (re-executes once; core/memory.hpp).
-    kintsugi::use_huge_page_malloc(argv);
+    // Large inputs: glibc's allocator keeps freed memory for later stages (re-executes once;
+    // core/memory.hpp).
+    kintsugi::use_kept_heap_malloc(argv);
     using namespace kcli;
     const SignalWatcher watcher;
 
@@ -277,7 +278,7 @@ int main(int argc, char** argv) {
             return 2;
         }
         const kintsugi::ThreadLimit limit(ctx.common.threads);
-        ctx.json()["huge_page_malloc"] = kintsugi::huge_page_malloc_on();  // use_huge_page_malloc above
+        ctx.json()["kept_heap_malloc"] = kintsugi::kept_heap_malloc_on();  // use_kept_heap_malloc above
         for (auto& [sub, action] : actions)
             if (sub->parsed()) {
                 action();

@@ -36,18 +36,18 @@ if grep -q "boundary loops" "$work/out"; then ok; else bad "info human output"; 
 expect 0 "info point cloud" -- "$bin" info "$cloud" --json
 json_check "info point cloud fields" "j['vertices']==5210 and j['faces']==0 and j['has_normals'] is True"
 
-# ---- glibc's allocator on huge pages (kintsugi::use_huge_page_malloc re-executes the tool
+# ---- glibc's allocator keeping freed memory (kintsugi::use_kept_heap_malloc re-executes the tool
 # once with GLIBC_TUNABLES set, keeping the arguments and other tunables; opt-out variable)
-if grep -qE '\[(madvise|always)\]' /sys/kernel/mm/transparent_hugepage/enabled 2>/dev/null && ldd --version 2>&1 | grep -qi glibc; then
-  expect 0 "info, huge-page malloc" -- env -u KINTSUGI_NO_HUGE_PAGES -u GLIBC_TUNABLES "$bin" info "$mesh" --json
-  json_check "huge_page_malloc on" "j['huge_page_malloc'] is True and j['vertices']==1839"
-  expect 0 "info, other tunables kept" -- env -u KINTSUGI_NO_HUGE_PAGES GLIBC_TUNABLES=glibc.malloc.check=0 "$bin" info "$mesh" --json
-  json_check "huge_page_malloc with other tunables" "j['huge_page_malloc'] is True and j['faces']==3674"
+if ldd --version 2>&1 | grep -qi glibc; then
+  expect 0 "info, kept-heap malloc" -- env -u KINTSUGI_DEFAULT_MALLOC -u GLIBC_TUNABLES "$bin" info "$mesh" --json
+  json_check "kept_heap_malloc on" "j['kept_heap_malloc'] is True and j['vertices']==1839"
+  expect 0 "info, other tunables kept" -- env -u KINTSUGI_DEFAULT_MALLOC GLIBC_TUNABLES=glibc.malloc.check=0 "$bin" info "$mesh" --json
+  json_check "kept_heap_malloc with other tunables" "j['kept_heap_malloc'] is True and j['faces']==3674"
 else
-  echo "SKIPPED: huge-page malloc checks (no transparent huge pages or not glibc)" >&2
+  echo "SKIPPED: kept-heap malloc checks (not glibc)" >&2
 fi
-expect 0 "info, huge-page malloc off" -- env -u GLIBC_TUNABLES KINTSUGI_NO_HUGE_PAGES=1 "$bin" info "$mesh" --json
-json_check "huge_page_malloc off" "j['huge_page_malloc'] is False and j['vertices']==1839"
+expect 0 "info, kept-heap malloc off" -- env -u GLIBC_TUNABLES KINTSUGI_DEFAULT_MALLOC=1 "$bin" info "$mesh" --json
+json_check "kept_heap_malloc off" "j['kept_heap_malloc'] is False and j['vertices']==1839"
 
 # ---- errors: exit 1, clear message
 expect 1 "info missing file" -- "$bin" info "$work/does_not_exist.ply"

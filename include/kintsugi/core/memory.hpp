@@ -4,7 +4,7 @@
 #pragma once
 /// @file memory.hpp
 /// @brief Large buffers backed by transparent huge pages where the system allows it
-/// (internal), and use_huge_page_malloc for programs (public).
+/// (internal), and use_kept_heap_malloc for programs (public).
 ///
 /// A buffer of hundreds of megabytes filled once (an octree's cells, a flow network)
 /// pays one page fault per 4 KiB page on first touch. On the 2-core VM the benchmarks run
@@ -18,7 +18,6 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -65,10 +64,9 @@ template <class T>
     return v;
 }
 
-/// The glibc tunables use_huge_page_malloc sets (see there).
+/// The glibc tunables use_kept_heap_malloc sets (see there).
 inline constexpr const char* kept_heap_tunables =
-    "glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=134217728:glibc.malloc.trim_threshold=4294967296:"
-    "glibc.malloc.arena_max=1";
+    "glibc.malloc.mmap_threshold=134217728:glibc.malloc.trim_threshold=4294967296:glibc.malloc.arena_max=1";
 
 /// Whether GLIBC_TUNABLES (glibc reads it only at start) holds `text`.
 [[nodiscard]] inline bool glibc_tunables_contain(const char* text) noexcept {
@@ -77,7 +75,7 @@ inline constexpr const char* kept_heap_tunables =
 }
 
 /// Whether the program asked glibc to keep freed memory (GLIBC_TUNABLES sets
-/// glibc.malloc.trim_threshold, as use_huge_page_malloc does).
+/// glibc.malloc.trim_threshold, as use_kept_heap_malloc does).
 [[nodiscard]] inline bool heap_kept() noexcept { return glibc_tunables_contain("glibc.malloc.trim_threshold="); }
 
 /// Gives the pages of freed heap memory back to the system (glibc's malloc_trim). glibc
@@ -98,47 +96,37 @@ inline void release_free_memory() noexcept {
 
 namespace kintsugi {
 
-/// Whether glibc's allocator runs on transparent huge pages in this process (GLIBC_TUNABLES
-/// holds glibc.malloc.hugetlb=1, as use_huge_page_malloc sets it); what a program reports.
-[[nodiscard]] inline bool huge_page_malloc_on() noexcept {
-    return detail::glibc_tunables_contain("glibc.malloc.hugetlb=1");
-}
+/// Whether glibc's allocator keeps freed memory in this process (GLIBC_TUNABLES sets
+/// glibc.malloc.trim_threshold, as use_kept_heap_malloc does); what a program reports.
+[[nodiscard]] inline bool kept_heap_malloc_on() noexcept { return detail::heap_kept(); }
 
 /// @brief For programs, called first in main: on Linux with glibc, runs the program
-/// again (execv of /proc/self/exe, same arguments) with glibc's allocator on transparent
-/// huge pages and keeping the memory it is given (GLIBC_TUNABLES, read only at start:
-/// detail::kept_heap_tunables).
+/// again (execv of /proc/self/exe, same arguments) with glibc's allocator keeping the
+/// memory it is given (GLIBC_TUNABLES, read only at start: detail::kept_heap_tunables):
+/// mmap_threshold 128 MiB, trim_threshold 4 GiB, arena_max 1. Freed blocks below 128 MiB
+/// stay in one heap and later stages reuse them, instead of faulting in new pages that the
+/// system has to clear (on the benchmark VM, memory first touched after some idle time comes
+/// at 0.4-0.6 GB/s, against 5-15 GB/s when it was used a moment before); larger blocks still
+/// go back when freed, and the reconstruction trims the heap where a peak would otherwise grow
+/// (detail::release_free_memory). kintsugi's own large buffers are on huge pages either way
+/// (advise_huge_pages).
 ///
-/// - glibc.malloc.hugetlb=1: every large allocation, not only kintsugi's own buffers
-///   (advise_huge_pages), avoids a page fault per 4 KiB. Measured on the 2-core VM
-///   (bunny00, 2M points, reconstruct_pu_graphcut at level 9): 28.1 / 22.0 s without,
-///   20.7 / 19.0 s with, the same peaks and the same output.
-/// - mmap_threshold 128 MiB, trim_threshold 4 GiB, arena_max 1: freed blocks below
-///   128 MiB stay in one heap and later stages reuse them, instead of faulting in new
-///   pages that the system has to clear (on the benchmark VM, memory first touched after
-///   some idle time comes at 0.4-0.6 GB/s, against 5-15 GB/s when it was used a moment
-///   before); larger blocks still go back when freed (a 4 GiB threshold raised the 10M
-///   run's peak from 3.51 to 3.81 GB; 128 MiB to 3.65 GB), and the reconstruction still
-///   trims the heap where a peak would otherwise grow (detail::release_free_memory).
-///   Measured in docs/methods/pu_graphcut.md, "Memory the system has to back": the same
-///   output.
+/// Until 2026-12-07 (as use_huge_page_malloc) it also put every glibc allocation on
+/// transparent huge pages; on the 2-core VM that made the smoothing's first call at 590K faces
+/// 0.6-2 s slower and the reconstruction no faster (docs/methods/feature_bilateral.md, "The
+/// allocator revisited").
 ///
-/// The `kintsugi` CLI and bench_reconstruct call it. Does nothing (and returns) off
-/// Linux/glibc, when the kernel's THP mode is "never", when GLIBC_TUNABLES already sets
-/// glibc.malloc.hugetlb, when KINTSUGI_NO_HUGE_PAGES is set (e.g. under valgrind, which
-/// would not follow the execv), or when the execv fails. The results never depend on it.
+/// The `kintsugi` CLI, bench_reconstruct and bench_smooth call it. Does nothing (and returns)
+/// off Linux/glibc, when GLIBC_TUNABLES already sets glibc.malloc.trim_threshold (as after
+/// the execv), when KINTSUGI_DEFAULT_MALLOC is set (e.g. under valgrind, which would not
+/// follow the execv), or when the execv fails. The results never depend on it.
 /// @param argv main's argv (argv[0] first, null-terminated)
-inline void use_huge_page_malloc(char** argv) noexcept {
+inline void use_kept_heap_malloc(char** argv) noexcept {
 #if defined(__linux__) && defined(__GLIBC__)
-    if (argv == nullptr || argv[0] == nullptr || std::getenv("KINTSUGI_NO_HUGE_PAGES") != nullptr) return;
-    if (detail::glibc_tunables_contain("glibc.malloc.hugetlb")) return;
+    if (argv == nullptr || argv[0] == nullptr || std::getenv("KINTSUGI_DEFAULT_MALLOC") != nullptr) return;
+    if (detail::heap_kept()) return;
     const char* tunables = std::getenv("GLIBC_TUNABLES");
     try {
-        std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
-        std::string line;
-        if (!std::getline(mode, line) || line.find("[never]") != std::string::npos ||
-            (line.find("[madvise]") == std::string::npos && line.find("[always]") == std::string::npos))
-            return;
         const std::string value = tunables != nullptr && *tunables != 0
                                       ? std::string(tunables) + ":" + detail::kept_heap_tunables
                                       : std::string(detail::kept_heap_tunables);
