@@ -92,9 +92,17 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         ->capture_default_str()
         ->check(kcli::real(0.0, 1e6));
     cmd.add_option("--refine-spacing", p.refine_spacing,
-                   "Refine the surface to this many times the local sample spacing and move it onto the data (0: off)")
+                   "Refine the surface to this many times the local sample spacing and move it onto the data "
+                   "(0: off, else at least 0.25)")
         ->capture_default_str()
-        ->check(kcli::real(0.0, 1e6));
+        ->check(kcli::real(0.0, 1e6) & CLI::Validator(
+                                          [](std::string& in) -> std::string {
+                                              const double v = std::strtod(in.c_str(), nullptr);
+                                              return v == 0 || v >= kintsugi::min_refine_spacing
+                                                         ? std::string()
+                                                         : "must be 0 (off) or at least 0.25, got '" + in + "'";
+                                          },
+                                          "0 or >= 0.25"));
     cmd.add_option("--refine-neighbors", p.refine_neighbors, "Neighbours of the MLS fit of the refinement")
         ->capture_default_str()
         ->check(kcli::count(4, 100000));
@@ -148,6 +156,9 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         if (r.far_points > 0)
             ctx.notice(std::to_string(r.far_points) + " of the " + std::to_string(r.points) +
                        " points lie apart from the rest in groups too small to be an object; they were left out");
+        if (r.refine_budget_reached)
+            ctx.notice("the refinement stopped at its vertex budget where the points' spacing reads far below the "
+                       "rest (near-duplicate points or a dense cluster); the surface there is coarser than the points");
 
         const kintsugi::TopologyReport rep = kcli::reconstruct::write_surface(ctx, o->output, r.mesh);
 
@@ -189,6 +200,7 @@ kcli::Action setup(CLI::App& cmd, kcli::Context& ctx) {
         j["refined_vertices"] = r.refined_vertices;
         j["refine_noise_ratio"] = r.refine_noise_ratio;
         j["refine_neighbors_used"] = r.refine_neighbors_used;
+        j["refine_budget_reached"] = r.refine_budget_reached;
         j["vertices"] = rep.vertices;
         j["faces"] = rep.faces;
         j["components"] = rep.components;

@@ -25,8 +25,8 @@ std::shared_ptr<RbfOptions> add_rbf_options(CLI::App& cmd, std::vector<CLI::Opti
         rbf_only.push_back(cmd.add_option(name, value, std::string("rbf: ") + help)->capture_default_str()->check(check));
     };
     rbf_option("--n-max", r.n_max, "a cell splits while more centres are assigned to it (>= 10)", count(10, 100000));
-    rbf_option("--overlap", r.overlap, "overlap factor alpha of the cells (>= 1; paper 1.3-1.4)", real(1.0, 4.0));
-    rbf_option("--activity", r.activity, "activity factor beta of dead cells (>= 1; paper 1.05)", real(1.0, 4.0));
+    rbf_option("--overlap", r.overlap, "overlap factor alpha of the cells (1 to 3; paper 1.3-1.4)", real(1.0, 3.0));
+    rbf_option("--activity", r.activity, "activity factor beta of dead cells (1 to 3; paper 1.05)", real(1.0, 3.0));
     rbf_option("--resolution", r.resolution, "polygonisation cubes along the longest side", count(8, 4096));
     rbf_only.push_back(
         cmd.add_flag("--no-blend", o->no_blend, "rbf: the paper's single-cell evaluation (seams) instead of the blend"));

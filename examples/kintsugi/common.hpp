@@ -87,8 +87,10 @@ std::string printable(const std::string& s);
 /// (which pass CLI::Range: every comparison with NaN is false).
 inline CLI::Validator real(double lo, double hi, bool lo_open = false) {
     char desc[96];
-    if (hi == std::numeric_limits<double>::max())
-        std::snprintf(desc, sizeof desc, "%s finite number", lo_open && lo == 0 ? "positive" : "finite");
+    if (hi == std::numeric_limits<double>::max() && lo_open && lo == 0)
+        std::snprintf(desc, sizeof desc, "positive finite number");
+    else if (hi == std::numeric_limits<double>::max())
+        std::snprintf(desc, sizeof desc, "finite number %s %.6g", lo_open ? ">" : ">=", lo);
     else
         std::snprintf(desc, sizeof desc, "number in %c%.6g, %.6g]", lo_open ? '(' : '[', lo, hi);
     const std::string d = desc;

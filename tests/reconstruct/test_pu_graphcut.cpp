@@ -192,6 +192,49 @@ TEST_CASE("reconstruct_pu_graphcut: step 8 puts clean data's surface at the samp
     }
 }
 
+TEST_CASE("reconstruct_pu_graphcut: step 8 with every point given 10 times, and beside a dense cluster, stays bounded") {
+    // Copies of a point brought the spacing (the radius of 8 neighbours) to 0, and the
+    // splits doubled the mesh for 30 rounds (the kitten with each point 10 times: 23 GB).
+    std::vector<ks::Vec3> pts, nrm;
+    const Shape sphere{0};
+    kintsugi_test::sample_shape(sphere, 3000, 0.0, 0.0, 3, pts, nrm);
+    const auto once = ks::reconstruct_pu_graphcut(ks::with_normals(pts, nrm));
+    std::vector<ks::Vec3> p10, n10;
+    for (int c = 0; c < 10; ++c) {
+        p10.insert(p10.end(), pts.begin(), pts.end());
+        n10.insert(n10.end(), nrm.begin(), nrm.end());
+    }
+    const auto ten = ks::reconstruct_pu_graphcut(ks::with_normals(p10, n10));
+    REQUIRE(ten.status == ks::Status::ok);
+    const auto r10 = check_guarantee(ten.mesh);
+    CHECK(r10.components == 1);
+    CHECK(r10.genus == 0);
+    CHECK_FALSE(ten.refine_budget_reached);
+    MESSAGE("3,000 points once: " << once.mesh.vertices.size() << " vertices; each 10 times: " << ten.mesh.vertices.size());
+    CHECK(ten.mesh.vertices.size() < 2 * once.mesh.vertices.size());
+    CHECK(ten.refined_vertices > ten.mesh.vertices.size() / 2);
+    double mean = 0, max = 0;
+    kintsugi_test::distance_to_shape(ten.mesh, sphere, mean, max);
+    CHECK(mean < 0.002 * sphere.diagonal());
+
+    // Near-duplicates (copies 1e-9 of the diagonal apart) and a cluster 1000 times denser than
+    // the rest read a spacing far below the surface's: the splits stop at the vertex budget.
+    std::vector<ks::Vec3> pc = pts, nc = nrm;
+    for (int i = 0; i < 20000; ++i) {
+        const ks::Vec3 d = nrm[static_cast<std::size_t>(i) % 50];
+        pc.push_back(pts[static_cast<std::size_t>(i) % 50] + 1e-9 * sphere.diagonal() * static_cast<double>(i / 50) * d.unitOrthogonal());
+        nc.push_back(d);
+    }
+    const auto dense = ks::reconstruct_pu_graphcut(ks::with_normals(pc, nc));
+    REQUIRE(dense.status == ks::Status::ok);
+    MESSAGE("with 20,000 near-duplicates of 50 points: " << dense.mesh.vertices.size() << " vertices, budget reached "
+                                                        << dense.refine_budget_reached);
+    CHECK(check_guarantee(dense.mesh).components == 1);
+    CHECK(dense.refine_budget_reached);
+    // The budget: the mesh's vertices plus 4 per sample of the fit (at most the 23,000 points).
+    CHECK(dense.mesh.vertices.size() <= 4 * pc.size() + 2 * once.mesh.vertices.size());
+}
+
 TEST_CASE("reconstruct_pu_graphcut: step 8 on data denser than their noise widens its fit") {
     // The sphere, 20K points with noise of 0.4 % of the diagonal (about a quarter of the
     // samples' spacing): a 20-point fit would follow the noise; step 8 measures it and takes more
@@ -491,6 +534,8 @@ TEST_CASE("reconstruct_pu_graphcut: bad input throws invalid_input naming the pr
     expect(pts, nrm, {.fill_radius_fraction = std::numeric_limits<double>::quiet_NaN()}, "fill_radius_fraction");
     expect(pts, nrm, {.refine_spacing = -1}, "refine_spacing");
     expect(pts, nrm, {.refine_spacing = std::numeric_limits<double>::quiet_NaN()}, "refine_spacing");
+    expect(pts, nrm, {.refine_spacing = 0.1}, ">= 0.25");  // 0 or >= min_refine_spacing
+    expect(pts, nrm, {.refine_spacing = 4.9e-324}, "refine_spacing");
     expect(pts, nrm, {.refine_neighbors = 3}, "refine_neighbors");
     expect(pts, nrm, {.far_site_band = -1}, "far_site_band");
     expect(pts, nrm, {.far_site_band = std::numeric_limits<double>::quiet_NaN()}, "far_site_band");

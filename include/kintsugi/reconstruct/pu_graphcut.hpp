@@ -53,6 +53,10 @@ enum class Labeling {
     sign,      ///< the plain sign of the PU field (f < 0 inside), for comparison
 };
 
+/// The smallest PUGraphcutParams::refine_spacing other than 0: edges below a quarter of the
+/// samples' spacing add vertices (16 times as many as at 1), not detail.
+inline constexpr Scalar min_refine_spacing = 0.25;
+
 /// Parameters of reconstruct_pu_graphcut (aggregate; field order is API, append only).
 struct PUGraphcutParams {
     /// Octree depth in [1, 12]; the paper uses 8 (Si-sa, bunny) and 9 (Dragon, Buddha).
@@ -131,8 +135,9 @@ struct PUGraphcutParams {
     /// Detail at the samples' resolution: the cut's surface is refined until its edges
     /// are at most about this many times the local spacing of the input points near it,
     /// and each vertex with data near it is moved onto the moving-least-squares surface
-    /// of those points (step 8; the topology is the labelling's). >= 0, 0 keeps the
-    /// surface of steps 6-7 (vertices on the triangulation's edges only); default 1.5:
+    /// of those points (step 8; the topology is the labelling's). 0 keeps the surface of
+    /// steps 6-7 (vertices on the triangulation's edges only), else >= min_refine_spacing
+    /// (0.25: finer edges add vertices, not detail); default 1.5:
     /// clean bunny00 (100K) 14x closer to the truth than without, within 1.2x of
     /// screened Poisson at depth 10 with 40 % of its faces; 1 is 1.3x closer still at
     /// twice the vertices and time (docs/methods/pu_graphcut.md).
@@ -207,6 +212,11 @@ struct PUGraphcutResult {
     /// a graph node, hidden or thinned: graph_nodes = supports - hidden_supports -
     /// thinned_supports + outer_vertices.
     std::size_t thinned_supports = 0;
+    /// Step 8 stopped splitting at its vertex budget (the mesh's vertices plus 4 per sample
+    /// of its fit at refine_spacing 1.5, more at finer spacings) somewhere: the samples' spacing read far below the rest there
+    /// (near-duplicate points, a dense cluster beside sparse data); the surface is finer
+    /// than the triangulation's but not everywhere at the samples' spacing.
+    bool refine_budget_reached = false;
 };
 
 namespace detail {
@@ -243,9 +253,10 @@ inline void pu_graphcut_validate(const std::vector<Vec3>& pts, const std::vector
     if (!(p.far_site_band >= 0) || !std::isfinite(p.far_site_band))
         throw invalid_input(fn + "far_site_band = " + std::to_string(p.far_site_band) +
                             " must be finite and >= 0 (0 keeps every support in the triangulation; the default is 8)");
-    if (!(p.refine_spacing >= 0) || !std::isfinite(p.refine_spacing))
+    if (!(p.refine_spacing == 0 || p.refine_spacing >= min_refine_spacing) || !std::isfinite(p.refine_spacing))
         throw invalid_input(fn + "refine_spacing = " + std::to_string(p.refine_spacing) +
-                            " must be finite and >= 0 (0 keeps the triangulation's resolution; the default is 1.5)");
+                            " must be 0 (the triangulation's resolution) or finite and >= 0.25 (edges below a quarter of "
+                            "the samples' spacing add vertices, not detail; the default is 1.5)");
     if (p.refine_spacing > 0 && p.refine_neighbors < 4)
         throw invalid_input(fn + "refine_neighbors = " + std::to_string(p.refine_neighbors) +
                             " is too few for a surface fit; use at least 4 (the default is 20)");

@@ -336,6 +336,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_part(std::vector<Vec3> pts, std::vec
             res.refined_vertices = rs.projected;
             res.refine_noise_ratio = rs.noise_ratio;
             res.refine_neighbors_used = rs.neighbors;
+            res.refine_budget_reached = rs.budget_reached;
         }
         res.mesh = std::move(mt.mesh);
         auto t = progress.finish();
@@ -442,6 +443,7 @@ KINTSUGI_STAGE PUGraphcutResult pu_graphcut_run(std::vector<Vec3> pts, std::vect
         res.cut_value += r.cut_value;
         res.refine_noise_ratio = std::max(res.refine_noise_ratio, r.refine_noise_ratio);
         res.refine_neighbors_used = std::max(res.refine_neighbors_used, r.refine_neighbors_used);
+        res.refine_budget_reached = res.refine_budget_reached || r.refine_budget_reached;
         for (const StageTiming& t : r.timings) {
             auto it = std::find_if(res.timings.begin(), res.timings.end(),
                                    [&](const StageTiming& u) { return u.stage == t.stage; });

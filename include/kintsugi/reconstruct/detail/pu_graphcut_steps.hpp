@@ -320,6 +320,7 @@ struct RefineStats {
     std::size_t projected = 0;  ///< vertices moved onto the data
     Scalar noise_ratio = 0;     ///< estimated noise (standard deviation) / median spacing of the inliers
     std::size_t neighbors = 0;  ///< neighbours of the MLS fit (k, or more for noisy dense data)
+    bool budget_reached = false;  ///< the splits stopped at refine_vertex_budget
 };
 
 /// @brief Oriented samples averaged in groups of nearby ones with about the same normal:
@@ -554,6 +555,22 @@ inline RefineSamples refine_data(const PUField& field, const std::vector<Vec3>& 
     // The inliers by index, and their positions in a kd-tree that holds them (no other
     // copy of them: this runs beside the triangulation, whose memory is the stage's
     // largest; the grouping below reads the input through the indices).
+    // A point given several times (merged scans, a repeated export) counts once: the spacing
+    // below is the radius of its 8 nearest inliers, which copies bring to 0, and the
+    // refinement's edges with it (the kitten with each point 10 times grew past 23 GB).
+    // Equal positions are neighbours along the Morton order (ties by index): the first
+    // inlier of each run is kept. Inputs without exact duplicates are unchanged.
+    for (std::size_t j = 0; j < along.size();) {
+        std::size_t e = j + 1;
+        while (e < along.size() && pts[along[e]] == pts[along[j]]) ++e;
+        bool kept = false;
+        for (std::size_t t = j; t < e; ++t)
+            if (near[along[t]]) {
+                if (kept) near[along[t]] = 0;
+                kept = true;
+            }
+        j = e;
+    }
     std::vector<Index> sel;
     sel.reserve(static_cast<std::size_t>(std::count(near.begin(), near.end(), std::uint8_t{1})));
     for (std::size_t i = 0; i < pts.size(); ++i)
@@ -702,6 +719,14 @@ inline RefineData refine_fit(RefineSamples samples, const std::stop_token& stop)
     return data;
 }
 
+/// Most vertices step 8's splits may bring the mesh to: its own plus this many per sample of
+/// the fit at refine_spacing 1.5, times (1.5 / refine_spacing)² at finer spacings (a surface
+/// refined to 1.5 times the samples' spacing has about as many vertices as samples: the
+/// kitten's 5,210 points give 5,633). A bound where the spacing reads far below the rest
+/// (near-duplicate points, a dense cluster beside sparse data), so that the doubling rounds
+/// cannot exhaust memory; RefineStats::budget_reached says it stopped there.
+inline constexpr Scalar refine_vertex_budget = 4;
+
 /// @brief Steps 3-6 of step 8 (see above), on the data refine_data made.
 /// @return the vertices moved onto the data (MLS surface or field), the noise estimate and
 ///         the fit's neighbours; all 0, the mesh unchanged, when data has no surface (too
@@ -794,9 +819,15 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
                 for (Index v = 0; v < s0.size(); ++v) hm.scalar(ch, v) = s0[v];
             }
             const Scalar limit = Scalar(4) / 3 * spacing;
+            const Scalar per_sample = refine_vertex_budget * std::max<Scalar>(1, (Scalar(1.5) / spacing) * (Scalar(1.5) / spacing));
+            const std::size_t budget = nv0 + static_cast<std::size_t>(per_sample * static_cast<Scalar>(tree.size()));
             (void)split_and_flip(
                 hm, 0, [](Index) { return true; },
                 [&](Index h, Scalar len) {
+                    if (hm.num_vertices() >= budget) {
+                        stats.budget_reached = true;
+                        return false;
+                    }
                     return len > limit * std::min(hm.scalar(ch, hm.source(h)), hm.scalar(ch, hm.target(h)));
                 },
                 [&](Index h) { hm.split(h, 0.5); }, 30, progress, 0.1, 0.5);
@@ -966,7 +997,7 @@ inline RefineStats refine_to_samples(IndexedMesh& mesh, const RefineData& data, 
             }
         }
         if (bad == 0) break;
-        if (round == 5) return {0, stats.noise_ratio, stats.neighbors};
+        if (round == 5) return {0, stats.noise_ratio, stats.neighbors, stats.budget_reached};
     }
     hm.to_mesh(mesh);
     return stats;
