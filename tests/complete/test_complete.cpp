@@ -174,6 +174,17 @@ TEST_CASE("complete_holes_example_based: bad input throws and leaves the mesh un
     CHECK_THROWS_WITH_AS(ks::complete_holes_example_based(nan), doctest::Contains("vertex 5"), ks::invalid_input);
     ks::IndexedMesh empty;
     CHECK_THROWS_WITH_AS(ks::complete_holes_example_based(empty), doctest::Contains("empty"), ks::invalid_input);
+    // Nothing to copy from: every vertex at one point, or all of them on a line (the mesh's
+    // connectivity is the bunny's, with its hole).
+    for (const bool line : {false, true}) {
+        CAPTURE(line);
+        ks::IndexedMesh flat = in;
+        for (std::size_t v = 0; v < flat.vertices.size(); ++v)
+            flat.vertices[v] = line ? ks::Vec3(static_cast<double>(v), 2.0 * static_cast<double>(v), 0) : ks::Vec3(1, 2, 3);
+        const ks::IndexedMesh flat0 = flat;
+        CHECK_THROWS_WITH_AS(ks::complete_holes_example_based(flat), doctest::Contains("zero area"), ks::invalid_input);
+        CHECK(flat.vertices == flat0.vertices);
+    }
 }
 
 TEST_CASE("complete_holes_example_based: cancellation leaves the mesh untouched") {

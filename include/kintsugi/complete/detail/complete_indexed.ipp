@@ -394,11 +394,28 @@ KINTSUGI_STAGE CompletionResult complete_indexed(IndexedMesh& work, const Comple
                         tree.radius_search_squared(hm.position(v), A2, nb, false);
                         for (const Neighbor& n : nb) in_omega_p[live[n.index]] = 1;
                     }
+                    // Fixed vertices whose sphere A holds more than dense_ratio times what a mesh at
+                    // l_ave holds there keep that share only (the bound on what one vertex reads,
+                    // max_ssd_samples, keeps each one's cost; this keeps their number).
+                    std::vector<Scalar> keep(cap, 1);
+                    {
+                        const Scalar usual = dense_ratio * uniform_vertices_within(A / lave);
+                        std::vector<Index> fixed_in;
+                        for (const Index v : live)
+                            if (in_omega_p[v] && !st.omega[v]) fixed_in.push_back(v);
+                        parallel_for(0, fixed_in.size(), [&](std::size_t i) {
+                            thread_local std::vector<Neighbor> around;
+                            tree.radius_search_squared(hm.position(fixed_in[i]), A2, around, false);
+                            const Scalar n = static_cast<Scalar>(around.size());
+                            if (n > usual) keep[fixed_in[i]] = usual / n;
+                        }, 64);
+                    }
                     ev.active.clear();
                     ev.slot.assign(cap, HalfedgeMesh::invalid);
                     for (const Index v : live) {
                         if (!in_omega_p[v]) continue;
                         if (!st.omega[v] && hash01(v, level, params.seed) < L.thin_fraction) continue;
+                        if (keep[v] < 1 && hash01(v, level + nlev, params.seed) >= keep[v]) continue;
                         ev.slot[v] = ev.active.size();
                         ev.active.push_back(v);
                     }
@@ -417,9 +434,11 @@ KINTSUGI_STAGE CompletionResult complete_indexed(IndexedMesh& work, const Comple
                                                                           m[v] == std::numeric_limits<std::uint32_t>::max() ? 1 : m[v]))
                                                         : Scalar(1);
                             tree.radius_search_squared(hm.position(v), A2, nbl, true);
-                            std::vector<Sample> S(nbl.size());
-                            for (std::size_t k = 0; k < nbl.size(); ++k) {
-                                const Index u = live[nbl[k].index];
+                            // At most max_ssd_samples of them, spread evenly by distance.
+                            const std::size_t ns = std::min(nbl.size(), max_ssd_samples);
+                            std::vector<Sample> S(ns);
+                            for (std::size_t k = 0; k < ns; ++k) {
+                                const Index u = live[nbl[ns < nbl.size() ? spread(k, nbl.size(), ns) : k].index];
                                 S[k] = {F.local(hm.position(u)), F.local_dir(vn[u])};
                             }
                             const std::size_t stride = std::max<std::size_t>(1, S.size() / params.search_samples);
@@ -565,7 +584,9 @@ KINTSUGI_STAGE CompletionResult complete_indexed(IndexedMesh& work, const Comple
                             std::vector<Vec3> q;
                             Scalar se = 0;
                             std::size_t ne = 0;
-                            for (const Neighbor& n : nb) {
+                            const std::size_t nn = std::min(nb.size(), max_ssd_samples);  // an even subset beyond it
+                            for (std::size_t i = 0; i < nn; ++i) {
+                                const Neighbor& n = nb[nn < nb.size() ? spread(i, nb.size(), nn) : i];
                                 if (vf[n.index].empty()) continue;
                                 const Vec3 l = F.local(work.vertices[n.index]);
                                 const Vec3 d = F.local_dir(data_normal[n.index]);
