@@ -48,6 +48,16 @@ void run_rbf(const RbfOptions& options, const RbfRun& run, Context& ctx, kintsug
     ctx.end_progress();
     if (r.status == kintsugi::Status::cancelled) throw interrupted();
     ctx.add_timings(r.timings);
+    if (r.mesh.faces.empty()) {
+        // An empty mesh is no result: the surface fell between the polygonisation's samples.
+        kintsugi::BoundingBox box;
+        for (const kintsugi::Vec3& q : cloud.points) box.extend(q);
+        throw kintsugi::invalid_input(
+            "no surface was found at --resolution " + std::to_string(p.resolution) + ": a polygonisation cube is " +
+            kintsugi::detail::format_number(box.extent().maxCoeff() / p.resolution) +
+            " wide, more than the points' features or the gaps between groups of them; raise --resolution, or "
+            "reconstruct each group separately (--method pu-graphcut gives each group its own box)");
+    }
     const kintsugi::TopologyReport rep = write_surface(ctx, run.output, r.mesh);
     const auto& st = r.stats;
     auto& j = ctx.json();

@@ -108,6 +108,19 @@ expect 0 "reconstruct --method rbf --no-blend --smoothing" -- "$bin" reconstruct
 json_check "rbf: options reach the fit" "j['parameters']['blend'] is False and j['parameters']['smoothing']==0.01 and j['parameters']['n_max']==60 and j['max_points_per_cell']<=80 and j['closed']"
 expect 0 "reconstruct --method rbf, normals estimated" -- "$bin" reconstruct "$mesh" "$work/rbf3.ply" --method rbf --resolution 32 --json
 json_check "rbf: estimated normals" "j['normals_estimated'] is True and j['points']==1839 and j['faces']>0"
+# Two unit spheres 1000 apart: at --resolution 32 a cube is about 31 wide and the RBF surface
+# falls between its samples; an empty mesh is an error, not a result.
+"$PY" -c "
+import math
+for c in (0, 1000):
+    for i in range(400):
+        z = 1 - 2 * (i + 0.5) / 400; r = math.sqrt(1 - z * z); t = i * 2.399963
+        x, y = r * math.cos(t), r * math.sin(t)
+        print(x + c, y, z, x, y, z)
+" > "$work/two_spheres.xyz"
+expect 1 "reconstruct --method rbf, surface between the cubes" -- "$bin" reconstruct "$work/two_spheres.xyz" "$work/rbf_empty.ply" --method rbf --resolution 32
+stderr_has "rbf empty surface message" "no surface was found at --resolution 32"
+if [ -e "$work/rbf_empty.ply" ]; then bad "rbf empty surface: an output file was written"; else ok; fi
 
 # ---- upsample: surfels with a radius property; a filled set needs nothing more; bad radius
 expect 0 "upsample --json" -- "$bin" upsample "$cloud" "$work/surfels.ply" --radius-rel 0.01 --json
