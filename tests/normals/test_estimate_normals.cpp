@@ -403,6 +403,11 @@ TEST_CASE("bad input throws invalid_input naming the problem and leaves the inpu
     auto inf = s;
     inf[3].z() = -std::numeric_limits<double>::infinity();
     expect_throw(inf, {}, "point 3");
+    // No normal to fit: every point at one place, or all on one line (a plane is fine).
+    expect_throw(std::vector<ks::Vec3>(20, ks::Vec3(1, 2, 3)), {.k = 5}, "all points coincide");
+    std::vector<ks::Vec3> line;
+    for (int i = 0; i < 20; ++i) line.emplace_back(1e6 + i, 2.0 * i, -0.5 * i);
+    expect_throw(line, {.k = 5}, "all points are collinear");
 
     // CGAL::Point_set_3 without a normal map: still none after a failed call.
     PointSet3 ps;

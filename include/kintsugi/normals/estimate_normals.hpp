@@ -26,6 +26,7 @@
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/frame.hpp>
+#include <kintsugi/core/spread.hpp>
 #include <kintsugi/normals/detail/estimate_normals_impl.hpp>
 #include <kintsugi/spatial/kd_tree.hpp>
 
@@ -110,7 +111,11 @@ std::vector<Vec3> estimate_input(const char* fn, const P& points, const NormalPa
     if (jet && n < 6)
         throw invalid_input(std::string(fn) + ": the point set has " + std::to_string(n) +
                             " points; jet fitting needs at least 6");
-    return checked_positions(fn, points);
+    std::vector<Vec3> pts = checked_positions(fn, points);
+    // Points at one place or on one line have no normal (every direction across the line
+    // fits); a plane's is its normal.
+    (void)require_spread_off_a_line(pts, std::string(fn) + ": ", "a normal needs points spread over a surface");
+    return pts;
 }
 
 /// A KdTree over `pts` (stage "kd-tree", [0, a)) and each point's `k` nearest (stage

@@ -36,6 +36,7 @@
 #include <kintsugi/core/control.hpp>
 #include <kintsugi/core/error.hpp>
 #include <kintsugi/core/parallel.hpp>
+#include <kintsugi/core/spread.hpp>
 #include <kintsugi/core/stages.hpp>
 #include <kintsugi/core/types.hpp>
 #include <kintsugi/field/partition_of_unity.hpp>
@@ -319,23 +320,10 @@ inline void pu_validate_input(const std::vector<Vec3>& pts, const std::vector<Ve
 inline void pu_validate(const std::vector<Vec3>& pts, const std::vector<Vec3>& nrm, const PUFieldParams& params) {
     const std::string fn = "kintsugi::PUField::build: ";
     pu_validate_input(pts, nrm, params.max_level, params.epsilon, fn, false);
-    // Coplanar / collinear: smallest spread of the points relative to the largest.
-    Vec3 mean = Vec3::Zero();
-    for (const auto& p : pts) mean += p;
-    mean /= static_cast<Scalar>(pts.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& p : pts) {
-        const Vec3 q = p - mean;
-        cov += q * q.transpose();
-    }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
-    const Vec3 ev = es.eigenvalues();  // increasing
-    // Relative to the eigen solver's accuracy (~1e-15): a spread below 1e-6 of the extent
-    // is far below the finest octree cell (2^-12).
-    const Scalar tiny = Scalar(1e-12) * ev[2];
-    if (!(ev[2] > 0)) throw invalid_input(fn + "all points coincide; a surface needs points spread in 3D");
-    if (ev[1] <= tiny) throw invalid_input(fn + "all points are collinear; a surface needs points spread in 3D");
-    if (ev[0] <= tiny)
+    // Coincident / collinear / coplanar: smallest spread of the points relative to the
+    // largest (a spread below 1e-6 of the extent is far below the finest octree cell, 2^-12).
+    const Vec3 ev = require_spread_off_a_line(pts, fn, "a surface needs points spread in 3D");
+    if (ev[0] <= spread_floor * ev[2])
         throw invalid_input(fn + "all points are coplanar; the PU field needs points spread in 3D (a closed or "
                             "curved scan)");
 }
