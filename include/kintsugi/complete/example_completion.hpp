@@ -182,7 +182,7 @@ inline constexpr Scalar dense_ratio = 4;
 /// triangles of side l_ave: π a² times 2 / √3 per unit area.
 inline Scalar uniform_vertices_within(Scalar a) { return Scalar(3.14159265358979323846) * a * a * Scalar(1.1547005383792515); }
 
-/// Index of the k-th of `limit` entries spread evenly over n (n > limit).
+/// Index of the k-th of `limit` entries spread evenly over n (n >= limit; k itself when n == limit).
 inline std::size_t spread(std::size_t k, std::size_t n, std::size_t limit) { return k * n / limit; }
 
 /// Orthonormal frame at a vertex: origin o, principal directions x (k1), y (k2), normal z.
@@ -209,7 +209,7 @@ inline LocalFrame fit_frame(const Vec3& p, const Vec3& ref, const KdTree& tree, 
     if (n >= 8)
         j = detail::fit_jet(
             [&](std::size_t k) -> const Vec3& {
-                return tree.point(nb[n < nb.size() ? spread(k, nb.size(), n) : k].index);
+                return tree.point(nb[spread(k, nb.size(), n)].index);
             },
             n, p, 2, true);
     if (j.valid && j.d1.allFinite() && j.d2.allFinite()) {

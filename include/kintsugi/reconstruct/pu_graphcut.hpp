@@ -213,9 +213,10 @@ struct PUGraphcutResult {
     /// thinned_supports + outer_vertices.
     std::size_t thinned_supports = 0;
     /// Step 8 stopped splitting at its vertex budget (the mesh's vertices plus 4 per sample
-    /// of its fit at refine_spacing 1.5, more at finer spacings) somewhere: the samples' spacing read far below the rest there
-    /// (near-duplicate points, a dense cluster beside sparse data); the surface is finer
-    /// than the triangulation's but not everywhere at the samples' spacing.
+    /// of its fit at refine_spacing 1.5, more at finer spacings) somewhere: the samples'
+    /// spacing read far below the rest there (near-duplicate points, a dense cluster beside
+    /// sparse data); the surface is finer than the triangulation's but not everywhere at the
+    /// samples' spacing.
     bool refine_budget_reached = false;
 };
 

@@ -401,8 +401,9 @@ KINTSUGI_STAGE CompletionResult complete_indexed(IndexedMesh& work, const Comple
                     {
                         const Scalar usual = dense_ratio * uniform_vertices_within(A / lave);
                         std::vector<Index> fixed_in;
-                        for (const Index v : live)
-                            if (in_omega_p[v] && !st.omega[v]) fixed_in.push_back(v);
+                        for (const Index v : live)  // those the levels' thinning keeps
+                            if (in_omega_p[v] && !st.omega[v] && !(hash01(v, level, params.seed) < L.thin_fraction))
+                                fixed_in.push_back(v);
                         parallel_for(0, fixed_in.size(), [&](std::size_t i) {
                             thread_local std::vector<Neighbor> around;
                             tree.radius_search_squared(hm.position(fixed_in[i]), A2, around, false);
@@ -438,7 +439,7 @@ KINTSUGI_STAGE CompletionResult complete_indexed(IndexedMesh& work, const Comple
                             const std::size_t ns = std::min(nbl.size(), max_ssd_samples);
                             std::vector<Sample> S(ns);
                             for (std::size_t k = 0; k < ns; ++k) {
-                                const Index u = live[nbl[ns < nbl.size() ? spread(k, nbl.size(), ns) : k].index];
+                                const Index u = live[nbl[spread(k, nbl.size(), ns)].index];
                                 S[k] = {F.local(hm.position(u)), F.local_dir(vn[u])};
                             }
                             const std::size_t stride = std::max<std::size_t>(1, S.size() / params.search_samples);
@@ -586,7 +587,7 @@ KINTSUGI_STAGE CompletionResult complete_indexed(IndexedMesh& work, const Comple
                             std::size_t ne = 0;
                             const std::size_t nn = std::min(nb.size(), max_ssd_samples);  // an even subset beyond it
                             for (std::size_t i = 0; i < nn; ++i) {
-                                const Neighbor& n = nb[nn < nb.size() ? spread(i, nb.size(), nn) : i];
+                                const Neighbor& n = nb[spread(i, nb.size(), nn)];
                                 if (vf[n.index].empty()) continue;
                                 const Vec3 l = F.local(work.vertices[n.index]);
                                 const Vec3 d = F.local_dir(data_normal[n.index]);
